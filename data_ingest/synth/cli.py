@@ -1,0 +1,40 @@
+"""``lanelab-synth``: write synthetic drive logs (MCAP) and, on request, a preview picture.
+
+    lanelab-synth output_dir=DIR num_logs=N duration_s=S seed=K encoding=ros2|foxglove [--preview]
+
+Options are Hydra overrides of ``conf/synth.yaml``; ``--preview`` is short for
+``preview=true``. Logs already present are kept (an interrupted run resumes) unless
+``overwrite=true``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import hydra
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
+
+from data_ingest.synth.config import ConfigError, SynthConfig, validate
+
+ConfigStore.instance().store(name="synth_schema", node=SynthConfig)
+
+
+@hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="synth")
+def _run(cfg: DictConfig) -> None:
+    from data_ingest.synth.synthesize import synthesize  # heavy imports after the config is composed
+
+    try:
+        synth_cfg = validate(OmegaConf.to_object(cfg))
+    except ConfigError as err:
+        sys.exit(f"lanelab-synth: bad option: {err}")
+    synthesize(synth_cfg)
+
+
+def main() -> None:
+    sys.argv = [("preview=true" if arg == "--preview" else arg) for arg in sys.argv]
+    _run()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,148 @@
+"""Write a set of synthetic drive logs: parallel workers, a progress bar, a summary, a preview.
+
+Each log is written atomically under ``<output_dir>/<name>.mcap``; logs already there
+are kept, so an interrupted run resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+from concurrent.futures import ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator
+
+from omegaconf import OmegaConf
+from tqdm import tqdm
+
+from data_ingest.synth.config import SynthConfig
+from data_ingest.synth.drive import SyntheticDrive
+from data_ingest.synth.frame import SynthFrame
+from data_ingest.synth.mcap_writer import LogSummary, write_drive_log
+from data_ingest.synth.preview import PreviewRow, frames_to_keep, write_contact_sheet
+from lanelab.atomic_file import atomic_output
+
+PREVIEW_LOGS = 4
+PREVIEW_FRAMES = 4
+
+
+@dataclass
+class LogResult:
+    """What one log's job returns to the parent process."""
+
+    path: Path
+    summary: LogSummary | None  # None when the log already existed
+    preview: PreviewRow | None
+
+
+def log_path(cfg: SynthConfig, index: int) -> Path:
+    return Path(cfg.output_dir) / f"synth_s{cfg.seed}_{index:03d}.mcap"
+
+
+def frames_per_log(cfg: SynthConfig) -> int:
+    return max(int(round(cfg.duration_s * cfg.fps)), 1)
+
+
+class _KeepFrames:
+    """A drive whose ``frames()`` also keeps a few frames for the preview."""
+
+    def __init__(self, drive: SyntheticDrive, keep: set[int], row: PreviewRow) -> None:
+        self._drive, self._keep, self._row = drive, keep, row
+
+    def __getattr__(self, name: str):
+        return getattr(self._drive, name)
+
+    def frames(self) -> Iterator[SynthFrame]:
+        for frame in self._drive.frames():
+            if frame.index in self._keep:
+                self._row.frames.append(frame)
+            yield frame
+
+
+def _preview_frames(drive: SyntheticDrive, keep: set[int], row: PreviewRow) -> None:
+    """Render (without writing) a log that already exists, up to its last kept frame."""
+    for frame in _KeepFrames(drive, keep, row).frames():
+        if frame.index >= max(keep):
+            break
+
+
+def write_one_log(cfg: SynthConfig, index: int, with_preview: bool, progress: Callable[[int], None]) -> LogResult:
+    """Write log ``index`` unless it exists (or ``cfg.overwrite``); keep preview frames."""
+    drive = SyntheticDrive(cfg, index)
+    path = log_path(cfg, index)
+    row = PreviewRow(path.stem, drive.camera, drive.scenario) if with_preview else None
+    keep = frames_to_keep(frames_per_log(cfg), PREVIEW_FRAMES) if with_preview else set()
+    if path.exists() and not cfg.overwrite:
+        if row is not None:
+            _preview_frames(drive, keep, row)
+        return LogResult(path, None, row)
+    source = _KeepFrames(drive, keep, row) if row is not None else drive
+    return LogResult(path, write_drive_log(path, source, cfg, progress=progress), row)
+
+
+_counter = None  # frames written, shared with the worker processes
+
+
+def _init_worker(counter) -> None:
+    global _counter
+    _counter = counter
+
+
+def _count_frame(n: int = 1) -> None:
+    with _counter.get_lock():
+        _counter.value += n
+
+
+def _worker(cfg: SynthConfig, index: int, with_preview: bool) -> LogResult:
+    return write_one_log(cfg, index, with_preview, _count_frame)
+
+
+def _run_parallel(cfg: SynthConfig, bar: tqdm) -> list[LogResult]:
+    ctx = mp.get_context("fork")
+    counter = ctx.Value("q", 0)
+    with ProcessPoolExecutor(cfg.workers, mp_context=ctx, initializer=_init_worker, initargs=(counter,)) as pool:
+        futures = [pool.submit(_worker, cfg, i, i < PREVIEW_LOGS and cfg.preview) for i in range(cfg.num_logs)]
+        pending = set(futures)
+        while pending:
+            _, pending = wait(pending, timeout=0.25)
+            bar.update(counter.value - bar.n)
+        return [future.result() for future in futures]
+
+
+def _print_summary(results: list[LogResult], seconds: float) -> None:
+    written = [r.summary for r in results if r.summary is not None]
+    frames = sum(s.num_frames for s in written)
+    print(f"\n{'log':<28}{'frames':>8}{'MB':>9}  scenario")
+    for result in results:
+        scenario = result.preview.scenario if result.preview else {}
+        if result.summary is None:
+            print(f"{result.path.name:<28}{'kept':>8}{'':>9}  (already there; overwrite=true to rewrite)")
+            continue
+        s = result.summary
+        print(f"{result.path.name:<28}{s.num_frames:>8}{s.bytes / 1e6:>9.1f}  "
+              + " ".join(f"{k}={v}" for k, v in sorted(scenario.items())))
+    rate = frames / seconds if seconds > 0 else 0.0
+    print(f"{len(written)} logs written, {len(results) - len(written)} kept, {frames} frames "
+          f"in {seconds:.1f} s ({rate:.1f} frames/s)")
+
+
+def synthesize(cfg: SynthConfig) -> list[LogResult]:
+    """Write ``cfg.num_logs`` drive logs into ``cfg.output_dir`` (and the preview)."""
+    out = Path(cfg.output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_output(out / "synth_config.yaml") as tmp:
+        tmp.write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
+    todo = sum(1 for i in range(cfg.num_logs) if cfg.overwrite or not log_path(cfg, i).exists())
+    start = time.perf_counter()
+    with tqdm(total=todo * frames_per_log(cfg), unit="frame", desc="lanelab-synth", dynamic_ncols=True) as bar:
+        if cfg.workers > 1 and cfg.num_logs > 1:
+            results = _run_parallel(cfg, bar)
+        else:
+            results = [write_one_log(cfg, i, i < PREVIEW_LOGS and cfg.preview, bar.update)
+                       for i in range(cfg.num_logs)]
+    _print_summary(results, time.perf_counter() - start)
+    if cfg.preview:
+        rows = [r.preview for r in results if r.preview is not None]
+        print(f"preview: {write_contact_sheet(out / 'preview.png', rows)}")
+    return results
