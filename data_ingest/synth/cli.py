@@ -22,12 +22,12 @@ ConfigStore.instance().store(name="synth_schema", node=SynthConfig)
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="synth")
 def _run(cfg: DictConfig) -> None:
-    from data_ingest.synth.synthesize import synthesize  # heavy imports after the config is composed
-
     try:
         synth_cfg = validate(OmegaConf.to_object(cfg))
     except ConfigError as err:
         sys.exit(f"lanelab-synth: bad option: {err}")
+    from data_ingest.synth.synthesize import synthesize  # heavy imports only once the options are good
+
     synthesize(synth_cfg)
 
 
