@@ -12,12 +12,11 @@ from __future__ import annotations
 import sys
 
 import hydra
-from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
-from data_ingest.synth.config import ConfigError, SynthConfig, validate
+from data_ingest.synth.config import ConfigError, register_schema, validate
 
-ConfigStore.instance().store(name="synth_schema", node=SynthConfig)
+register_schema()
 
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="synth")

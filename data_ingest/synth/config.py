@@ -8,9 +8,11 @@ sense (:func:`validate`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, Sequence
 
-from omegaconf import MISSING
+from hydra import compose, initialize_config_module
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, OmegaConf
 
 ENCODINGS = ("ros2", "foxglove")
 FOXGLOVE_SCHEMAS = ("protobuf", "json")
@@ -147,3 +149,19 @@ def validate(cfg: SynthConfig) -> SynthConfig:
     if world.ego_speed_mps is not None and not 0 < world.ego_speed_mps <= 60:
         raise ConfigError(f"world.ego_speed_mps={world.ego_speed_mps} must be in (0, 60] (or null for the environment's)")
     return cfg
+
+
+def register_schema() -> None:
+    """Make the schema known to Hydra as ``synth_schema`` (the first entry of conf/synth.yaml's defaults)."""
+    ConfigStore.instance().store(name="synth_schema", node=SynthConfig)
+
+
+def load_synth_config(overrides: Sequence[str] = ()) -> SynthConfig:
+    """Compose ``conf/synth.yaml`` with Hydra overrides and validate it, as ``lanelab-synth`` does.
+
+    For scripts, benchmarks and tests that build drives without the command line.
+    """
+    register_schema()
+    with initialize_config_module(config_module="lanelab.conf", version_base="1.3"):
+        cfg = compose(config_name="synth", overrides=list(overrides))
+    return validate(OmegaConf.to_object(cfg))

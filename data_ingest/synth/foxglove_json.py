@@ -1,14 +1,16 @@
 """Foxglove's JSON encoding of its schemas, derived from the protobuf definitions.
 
 Foxglove's ``jsonschema`` types have the fields of its protobuf types under the same names,
-with times as ``{"sec", "nsec"}`` objects and bytes as base64 strings. Both functions walk
-the protobuf descriptor, so a JSON channel carries exactly what the protobuf one would.
+with times as ``{"sec", "nsec"}`` objects and bytes as base64 strings. :func:`json_schema`
+and :func:`to_json` walk the protobuf descriptor, so a JSON channel carries exactly what
+the protobuf one would. The lanelab JSON messages follow the same conventions.
 """
 
 from __future__ import annotations
 
 import base64
-from typing import Any
+import json
+from typing import Any, Mapping
 
 from google.protobuf.descriptor import Descriptor, FieldDescriptor
 from google.protobuf.message import Message
@@ -75,3 +77,8 @@ def _single_value(field: FieldDescriptor, value: Any) -> Any:
     if field.type == FieldDescriptor.TYPE_BYTES:
         return base64.b64encode(value).decode("ascii")
     return value
+
+
+def dumps(message: Mapping[str, Any]) -> bytes:
+    """Compact UTF-8 JSON; key order as built, so equal inputs give equal bytes."""
+    return json.dumps(message, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
