@@ -72,31 +72,22 @@ def rotation_to_quaternion(R: Tensor) -> Tensor:
     the one whose pivot (4w², 4x², 4y² or 4z²) is largest, so it never divides by a small
     number (e.g. near 180° rotations, where w -> 0). Sign is canonical: w >= 0.
     """
-    r = R.unbind(-1)
-    r00, r10, r20 = r[0].unbind(-1)
-    r01, r11, r21 = r[1].unbind(-1)
-    r02, r12, r22 = r[2].unbind(-1)
-    # Row i is 4 * q_i * q for pivot q_i in (w, x, y, z); its norm is 4 |q_i|.
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = (row.unbind(-1) for row in R.unbind(-2))
+    pivots = torch.stack(
+        [1 + r00 + r11 + r22, 1 + r00 - r11 - r22, 1 - r00 + r11 - r22, 1 - r00 - r11 + r22], dim=-1
+    )
+    # Row i is 4 q_i q for the pivot component q_i in (w, x, y, z); its norm is 4 |q_i|.
     candidates = torch.stack(
         [
-            torch.stack([r21 - r12, r02 - r20, r10 - r01, 1 + r00 + r11 + r22], dim=-1),
-            torch.stack([1 + r00 - r11 - r22, r01 + r10, r02 + r20, r21 - r12], dim=-1),
-            torch.stack([r01 + r10, 1 - r00 + r11 - r22, r12 + r21, r02 - r20], dim=-1),
-            torch.stack([r02 + r20, r12 + r21, 1 - r00 - r11 + r22, r10 - r01], dim=-1),
+            torch.stack([r21 - r12, r02 - r20, r10 - r01, pivots[..., 0]], dim=-1),
+            torch.stack([pivots[..., 1], r01 + r10, r02 + r20, r21 - r12], dim=-1),
+            torch.stack([r01 + r10, pivots[..., 2], r12 + r21, r02 - r20], dim=-1),
+            torch.stack([r02 + r20, r12 + r21, pivots[..., 3], r10 - r01], dim=-1),
         ],
         dim=-2,
     )
-    pivots = torch.stack(
-        [
-            1 + r00 + r11 + r22,
-            1 + r00 - r11 - r22,
-            1 - r00 + r11 - r22,
-            1 - r00 - r11 + r22,
-        ],
-        dim=-1,
-    )
-    best = pivots.argmax(dim=-1, keepdim=True).unsqueeze(-1).expand(*pivots.shape[:-1], 1, 4)
-    q = candidates.gather(-2, best).squeeze(-2)
+    best = pivots.argmax(dim=-1)[..., None, None]
+    q = torch.take_along_dim(candidates, best, dim=-2).squeeze(-2)
     q = q / q.norm(dim=-1, keepdim=True)
     return torch.where(q[..., 3:] < 0, -q, q)
 

@@ -1,0 +1,126 @@
+"""A small deterministic drive for the MCAP writer's tests, and the config it is written with.
+
+The tests call ``synth_config(*overrides)`` and ``make_drive(cfg)``; the latter builds a
+:class:`FakeDrive`. To run the same tests on the real renderer, override ``make_drive`` to
+return ``SyntheticDrive(cfg, 0)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import cv2
+import numpy as np
+import pytest
+
+from data_ingest.synth.config import SynthConfig, load_synth_config
+from data_ingest.synth.frame import CameraModel, Lane2D, LaneLabel, SynthFrame
+
+# Small and quick; label_every=3 so that not every frame is labelled.
+SMALL = ["duration_s=2.0", "fps=10", "tf_rate_hz=50", "label_every=3",
+         "camera.width=160", "camera.height=120"]
+
+
+def _camera(cfg: SynthConfig) -> CameraModel:
+    """A pinhole camera mounted as cfg.camera says: forward, up, pitched down."""
+    cam = cfg.camera
+    f = cam.width / 2 / math.tan(math.radians(cam.hfov_deg) / 2)
+    K = np.array([[f, 0, cam.width / 2], [0, f, cam.height / 2], [0, 0, 1]])
+    p = math.radians(cam.pitch_deg)
+    # Columns: optical x, y, z in base_link; z forward and tilted down by the pitch.
+    R = np.array([[0, -math.sin(p), math.cos(p)], [-1, 0, 0], [0, -math.cos(p), -math.sin(p)]])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, (cam.mount_forward_m, 0.0, cam.mount_height_m)
+    return CameraModel(K=K, width=cam.width, height=cam.height, T_base_cam=T, frame_id=cam.frame_id)
+
+
+@dataclass
+class FakeDrive:
+    """Drives along a gentle left curve over a slightly rolling road; everything is analytic.
+
+    The pose has non-zero roll, pitch and yaw and large coordinates, so that axis mix-ups
+    and precision losses show.
+    """
+
+    camera: CameraModel
+    duration_ns: int
+    fps: float
+    scenario: dict[str, str] = field(
+        default_factory=lambda: {"environment": "rural", "daytime": "day", "weather": "fog"})
+
+    def pose_at(self, t_ns: int) -> np.ndarray:
+        t = t_ns / 1e9
+        yaw, pitch, roll = 0.3 + 0.05 * t, 0.02 * math.sin(t), 0.01 * math.cos(2 * t)
+        cy, sy, cp, sp, cr, sr = (math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch),
+                                  math.cos(roll), math.sin(roll))
+        T = np.eye(4)
+        T[:3, :3] = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]]
+        T[:3, 3] = (1234.5 + 15 * t, -678.25 + 2 * t * t, 3.0 + 0.1 * t)
+        return T
+
+    def frames(self) -> Iterator[SynthFrame]:
+        count = int(self.duration_ns * self.fps // 1e9)
+        for index in range(count):
+            t_ns = round(index * 1e9 / self.fps)
+            yield SynthFrame(
+                index=index,
+                timestamp_ns=t_ns,
+                image=self._image(index),
+                T_world_base=self.pose_at(t_ns),
+                lanes=self._lanes(index),
+                lanes2d=self._lanes2d(index),
+                tags={"weather": "fog", "daytime": "day", "environment": "rural",
+                      "curvature": "straight" if index < count // 2 else "curve"},
+            )
+
+    def _image(self, index: int) -> np.ndarray:
+        h, w = self.camera.height, self.camera.width
+        rows = np.linspace(0, 255, h, dtype=np.float64)[:, None]
+        cols = np.linspace(0, 255, w, dtype=np.float64)[None, :]
+        image = np.stack([np.broadcast_to(rows, (h, w)), np.broadcast_to(cols, (h, w)),
+                          np.full((h, w), 7.0 * index % 256)], axis=-1).astype(np.uint8)
+        for k in range(3):
+            cv2.line(image, (w // 2 + (k - 1) * w // 3, h), (w // 2 + (k - 1) * 8 + index, h // 2), (255, 255, 255), 2)
+        return image
+
+    def _lanes(self, index: int) -> list[LaneLabel]:
+        y = np.linspace(3.0, 80.0, 25)
+        lanes = []
+        for k, offset in enumerate((-5.25, -1.75, 1.75, 5.25)):
+            x = offset + 1e-3 * y**2 + 0.01 * index
+            z = 0.02 * y + 0.001 * k
+            visibility = (y < 60 + 5 * k).astype(np.float32) * np.float32(0.9)
+            lanes.append(LaneLabel(track_id=10 + k, category=(2, 1, 1, 21)[k],
+                                   points=np.stack([x, y, z], axis=-1), visibility=visibility))
+        return lanes
+
+    def _lanes2d(self, index: int) -> list[Lane2D]:
+        v = np.linspace(self.camera.height - 1, self.camera.height / 2, 12, dtype=np.float32)
+        return [Lane2D(uv=np.stack([u0 + (v - v[0]) * slope + 0.5 * index, v], axis=-1).astype(np.float32),
+                       score=0.8 - 0.1 * k, category=1)
+                for k, (u0, slope) in enumerate(((20.0, -0.9), (140.0, 0.9)))]
+
+
+def fake_drive(cfg: SynthConfig) -> FakeDrive:
+    return FakeDrive(_camera(cfg), duration_ns=round(cfg.duration_s * 1e9), fps=cfg.fps)
+
+
+@pytest.fixture
+def synth_config() -> Callable[..., SynthConfig]:
+    """``synth_config(*overrides)``: conf/synth.yaml with :data:`SMALL`, then ``overrides``."""
+    return lambda *overrides: load_synth_config([*SMALL, *overrides])
+
+
+@pytest.fixture
+def fake_drive_factory() -> Callable[[SynthConfig], FakeDrive]:
+    return fake_drive
+
+
+@pytest.fixture
+def make_drive(fake_drive_factory):
+    """The drive the MCAP writer tests write: a function of the config."""
+    return fake_drive_factory
