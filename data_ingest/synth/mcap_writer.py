@@ -50,7 +50,7 @@ from lanelab.atomic_file import atomic_output
 from lanelab.geometry import T_BASE_LANE, compose, invert, rotation_to_quaternion, transform_points
 
 METADATA_NAME = "lanelab.synth"
-MAX_LAG_NS = 30_000_000
+MAX_LAG_NS = 30_000_000  # log time - sensor time is drawn from [0, MAX_LAG_NS]
 _END_OF_TIME = 2**63 - 1  # the largest int64 log time
 COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 

@@ -78,7 +78,7 @@ def write_one_log(cfg: SynthConfig, index: int, with_preview: bool, progress: Ca
             _preview_frames(drive, keep, row)
         return LogResult(path, None, row)
     source = _KeepFrames(drive, keep, row) if row is not None else drive
-    return LogResult(path, write_drive_log(path, source, cfg, progress=progress), row)
+    return LogResult(path, write_drive_log(path, source, cfg, progress=progress, log_index=index), row)
 
 
 _counter = None  # frames written, shared with the worker processes
