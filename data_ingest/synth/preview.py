@@ -1,7 +1,7 @@
 """Contact sheet of generated drives: frames with their GT lanes drawn, and a top view.
 
-One row per log: a few frames spread over the drive with the ground-truth lanes
-projected on them, then the top view of the last one, under a caption with the
+One row per log: the first frame as rendered, a few frames spread over the drive with
+the ground-truth lanes projected on them, then the top view of the last one, under a caption with the
 log's name and scenario. Written as a PNG so a person sees what was generated.
 """
 
@@ -45,12 +45,14 @@ def _row_image(row: PreviewRow, tile_width: int) -> np.ndarray:
     T_lane_cam = extrinsic_base_to_lane(torch.as_tensor(cam.T_base_cam, dtype=torch.float64)).numpy()
     scale = tile_width / cam.width
     tile_height = int(round(cam.height * scale))
+    # the first frame once as rendered, so the markings can be seen without the GT over them
+    pictures = [(row.frames[0].image, "image")]
+    pictures += [(draw_lanes_on_image(f.image, f.lanes, cam.K, T_lane_cam), f"GT t={f.timestamp_ns / 1e9:.1f}s")
+                 for f in row.frames]
     tiles = []
-    for frame in row.frames:
-        overlay = draw_lanes_on_image(frame.image, frame.lanes, cam.K, T_lane_cam)
-        tile = cv2.resize(overlay, (tile_width, tile_height), interpolation=cv2.INTER_AREA)
-        cv2.putText(tile, f"t={frame.timestamp_ns / 1e9:.1f}s", (4, tile_height - 6),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+    for picture, label in pictures:
+        tile = cv2.resize(picture, (tile_width, tile_height), interpolation=cv2.INTER_AREA)
+        cv2.putText(tile, label, (4, tile_height - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
         tiles.append(tile)
     last = row.frames[-1]
     tiles.append(draw_top_view(last.lanes, size=(tile_height, max(tile_height // 2, 60)), title="top"))

@@ -24,7 +24,7 @@ from data_ingest.synth.preview import PreviewRow, frames_to_keep, write_contact_
 from lanelab.atomic_file import atomic_output
 
 PREVIEW_LOGS = 4
-PREVIEW_FRAMES = 4
+PREVIEW_FRAMES = 3
 
 
 @dataclass
