@@ -124,3 +124,38 @@ def fake_drive_factory() -> Callable[[SynthConfig], FakeDrive]:
 def make_drive(fake_drive_factory):
     """The drive the MCAP writer tests write: a function of the config."""
     return fake_drive_factory
+
+
+# --- exact small worlds for the tests of the world, renderer and ground truth ------------------
+
+from data_ingest.synth import cross_section  # noqa: E402
+from data_ingest.synth.drive import SyntheticDrive  # noqa: E402
+from data_ingest.synth.road import Road  # noqa: E402
+
+CLEAR = ("world.environment=highway", "world.daytime=day", "world.weather=sun", "world.traffic_density=0",
+         "duration_s=2.0", "fps=10")
+
+
+@pytest.fixture(scope="session")
+def clear_cfg() -> SynthConfig:
+    """Clear day on a highway, no random traffic, 2 s at 10 fps, the default 480 x 360 camera."""
+    return load_synth_config(CLEAR)
+
+
+@pytest.fixture(scope="session")
+def straight_road() -> Road:
+    """800 m of straight, flat three-lane highway, 3.5 m lanes."""
+    return Road.from_profiles(800.0, cross_section.highway(3, 3.5))
+
+
+@pytest.fixture(scope="session")
+def crest_road() -> Road:
+    """A highway climbing at 6 % that turns over a sharp crest into a 6 % descent, 100-140 m in."""
+    return Road.from_profiles(800.0, cross_section.highway(3, 3.5),
+                              grade=lambda s: np.interp(s, [0.0, 100.0, 140.0], [0.06, 0.06, -0.06]))
+
+
+@pytest.fixture(scope="session")
+def clean_drive(clear_cfg, straight_road) -> SyntheticDrive:
+    """The ego in the middle lane of the straight road: nothing but the road, no sensor noise."""
+    return SyntheticDrive(clear_cfg, 0, road=straight_road, ego_lane=1, vehicles=[], sensor_noise=False)
