@@ -1,8 +1,9 @@
-"""A small deterministic drive for the MCAP writer's tests, and the config it is written with.
+"""Drives and configs for the synthetic-log tests.
 
-The tests call ``synth_config(*overrides)`` and ``make_drive(cfg)``; the latter builds a
-:class:`FakeDrive`. To run the same tests on the real renderer, override ``make_drive`` to
-return ``SyntheticDrive(cfg, 0)``.
+The MCAP writer's tests call ``synth_config(*overrides)`` and ``make_drive(cfg)``; the
+latter is parametrised over an analytic :class:`FakeDrive` (exact, with awkward poses)
+and the real :class:`SyntheticDrive`, so every writer test runs on both. The world,
+renderer and ground-truth tests build exact small worlds (``clean_drive``, ``crest_road``).
 """
 
 from __future__ import annotations
@@ -15,8 +16,11 @@ import cv2
 import numpy as np
 import pytest
 
+from data_ingest.synth import cross_section
 from data_ingest.synth.config import SynthConfig, load_synth_config
+from data_ingest.synth.drive import SyntheticDrive
 from data_ingest.synth.frame import CameraModel, Lane2D, LaneLabel, SynthFrame
+from data_ingest.synth.road import Road
 
 # Small and quick; label_every=3 so that not every frame is labelled.
 SMALL = ["duration_s=2.0", "fps=10", "tf_rate_hz=50", "label_every=3",
@@ -120,17 +124,15 @@ def fake_drive_factory() -> Callable[[SynthConfig], FakeDrive]:
     return fake_drive
 
 
-@pytest.fixture
-def make_drive(fake_drive_factory):
-    """The drive the MCAP writer tests write: a function of the config."""
-    return fake_drive_factory
+@pytest.fixture(params=["fake", "synthetic"])
+def make_drive(request, fake_drive_factory):
+    """The drive the MCAP writer tests write, a function of the config: the fake or the real one."""
+    if request.param == "fake":
+        return fake_drive_factory
+    return lambda cfg: SyntheticDrive(cfg, 0)
 
 
 # --- exact small worlds for the tests of the world, renderer and ground truth ------------------
-
-from data_ingest.synth import cross_section  # noqa: E402
-from data_ingest.synth.drive import SyntheticDrive  # noqa: E402
-from data_ingest.synth.road import Road  # noqa: E402
 
 CLEAR = ("world.environment=highway", "world.daytime=day", "world.weather=sun", "world.traffic_density=0",
          "duration_s=2.0", "fps=10")

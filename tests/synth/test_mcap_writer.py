@@ -269,7 +269,7 @@ def test_encodings_carry_the_same_content(write):
                                          strict=True):
         assert (img["format"], img["frame_id"]) == ("jpeg", camera.frame_id)
         decoded = cv2.imdecode(np.frombuffer(img["data"], np.uint8), cv2.IMREAD_COLOR)
-        assert np.abs(decoded.astype(int) - frame.image).mean() < 3  # JPEG, quality 90
+        assert np.abs(decoded.astype(int) - frame.image).mean() < 6  # JPEG at quality 90 of a noisy render
         assert lanes2d["frame_id"] == camera.frame_id
         assert len(lanes2d["lanes"]) == len(frame.lanes2d)
         for written, lane in zip(lanes2d["lanes"], frame.lanes2d):
