@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from lanelab.metrics.openlane import evaluate
+from lanelab.metrics.openlane import evaluate, evaluate_frames
 from lanelab.metrics.openlane_io import (
     OpenLaneFormatError,
     camera_lane_to_ground,
@@ -152,3 +152,15 @@ def test_unreadable_files_are_format_errors(dataset):
 def test_prediction_categories_go_through_int_like_the_official_reader(tmp_path):
     path = write(tmp_path / "p.json", pred_json("x.jpg", [straight(0.0)] * 3, [3.7, "4", True]))
     assert read_prediction(path).categories == [3, 4, 1]
+
+
+def test_evaluate_frames_gives_each_listed_frame_with_its_id(tmp_path):
+    names = ["validation/seg/a.jpg", "validation/seg/b.jpg"]
+    for name, x in zip(names, (0.0, 3.0)):
+        rel = name.replace("jpg", "json")
+        write(tmp_path / "gt" / rel, gt_json(name, [straight(x)]))
+        write(tmp_path / "pred" / rel, pred_json(name, [straight(x + 0.1)]))
+    test_list = write(tmp_path / "test_list.txt", "\n".join(names) + "\n")
+    frames = evaluate_frames(tmp_path / "gt", tmp_path / "pred", test_list)
+    assert [frame_id for frame_id, _ in frames] == ["validation/seg/a.json", "validation/seg/b.json"]
+    assert all(result.matched == [(0, 0)] for _, result in frames)

@@ -1,19 +1,29 @@
-"""Lane-detection metrics. ``openlane``: the official OpenLane 3D-lane metric, reproduced."""
+"""Lane-detection metrics.
 
+- ``openlane``: the official OpenLane 3D-lane metric, reproduced, with SparseLaneSTP's
+  long-range and Vis-IoU extensions; ``openlane_metric``: the same as a torchmetrics Metric.
+- ``scenarios``: per-scenario tables; ``temporal_consistency``: frame-to-frame jitter.
+- ``once``: the ONCE-3DLanes metric.
+"""
+
+from lanelab.metrics.json_files import LaneFileError
 from lanelab.metrics.openlane import (
     FrameResult,
     OpenLaneConfig,
     evaluate,
     evaluate_frame,
+    evaluate_frames,
     summarize,
 )
 from lanelab.metrics.openlane_io import OpenLaneFormatError
 
 __all__ = [
     "FrameResult",
+    "LaneFileError",
     "OpenLaneConfig",
     "OpenLaneFormatError",
     "evaluate",
     "evaluate_frame",
+    "evaluate_frames",
     "summarize",
 ]

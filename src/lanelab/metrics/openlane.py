@@ -14,6 +14,10 @@ Per frame (:func:`evaluate_frame`): lanes are pruned, resampled at 100 y values 
 a matched pair counts towards recall / precision when at least 75 % of the GT's / the
 prediction's visible samples lie within 1.5 m. Over frames (:func:`summarize`), counts are
 summed before dividing, and errors are averaged over all matched pairs.
+
+Two extensions of SparseLaneSTP (§5.1), off by default, are options of
+:class:`OpenLaneConfig`: x/z errors over further y ranges (``extra_ranges``, with the
+y-sampling extended, see :meth:`OpenLaneConfig.long_range`) and Vis-IoU (``vis_iou``).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -50,24 +54,76 @@ class OpenLaneConfig:
     close_range: float = 40.0  # metres, the close / far split of the errors
     # Official hard-coded y window of prune_3d_lane_by_range (points kept strictly inside).
     prune_y_range: tuple[float, float] = (0.0, 200.0)
+    # Extension: further splits of the far range, e.g. (100, 150) for the 40-100, 100-150
+    # and 150-200 m errors of SparseLaneSTP's Table 5.
+    extra_ranges: tuple[float, ...] = ()
+    # Extension: Vis-IoU of the matched pairs (see _visibility_iou).
+    vis_iou: bool = False
+    # Predicted points of visibility at or below this are not part of the lane (lanelab's
+    # OpenLane writer leaves them out of the JSON); also the "visible" cut of Vis-IoU. 0.5,
+    # as the visibility of lanelab's training targets (lanelab.data.targets).
+    visibility_threshold: float = 0.5
+
+    @classmethod
+    def long_range(cls) -> OpenLaneConfig:
+        """SparseLaneSTP's long-range evaluation (§5.1): samples every metre from 3 to 200 m,
+        errors over 0-40, 40-100, 100-150 and 150-200 m, and Vis-IoU.
+
+        The prune window grows with the sampling range as in the official setting, where it
+        reaches well past the last sample (200 m for 102 m): to 250 m, SparseLaneSTP's
+        label range.
+        """
+        return cls(
+            y_range=(3.0, 201.0),
+            num_y_samples=198,
+            prune_y_range=(0.0, 250.0),
+            extra_ranges=(100.0, 150.0),
+            vis_iou=True,
+        )
 
     @property
     def y_samples(self) -> np.ndarray:
         """(S,) y values: S points from y_range[0] up to, not including, y_range[1]."""
         return np.linspace(*self.y_range, num=self.num_y_samples, endpoint=False)
 
+    @property
+    def error_ranges(self) -> list[tuple[str, slice]]:
+        """(name, samples) of each error range: "close" (y <= close_range), "far" (up to
+        the first extra range or the last sample), then "<lo>_<hi>" for each extra range."""
+        y = self.y_samples
+        # Quirk: "close" is the samples up to the first y > close_range (3 .. 40 m inclusive).
+        edges = (self.close_range, *self.extra_ranges)
+        splits = [int(np.searchsorted(y, edge, side="right")) for edge in edges]
+        upper = (*self.extra_ranges[1:], y[-1])
+        names = ["close", "far"] + [f"{lo:g}_{hi:g}" for lo, hi in zip(self.extra_ranges, upper)]
+        bounds = [0, *splits, len(y)]
+        return [(name, slice(a, b)) for name, a, b in zip(names, bounds[:-1], bounds[1:])]
+
+    @property
+    def pair_value_names(self) -> list[str]:
+        """Names of the per-pair values a FrameResult holds: x_error_close, x_error_far,
+        [x_error_100_150 ...], z_error_close, ..., [vis_iou]."""
+        ranges = [name for name, _ in self.error_ranges]
+        names = [f"{axis}_error_{name}" for axis in "xz" for name in ranges]
+        return names + (["vis_iou"] if self.vis_iou else [])
+
+
+# Per-frame counts that add up over frames (the keys of FrameResult.counts).
+COUNT_KEYS = ("gt_lanes", "pred_lanes", "matched", "recall_tp", "precision_tp", "category_correct")
+
 
 @dataclass(frozen=True)
 class FrameResult:
-    """Counts and per-pair errors of one frame.
+    """Counts and per-pair values (errors, Vis-IoU) of one frame.
 
     gt_count / pred_count: lanes left after pruning (the recall / precision denominators).
     matched: accepted pairs (GT lane, predicted lane), as indices into the inputs of
     evaluate_frame, in increasing GT order.
     recall_tp / precision_tp: matched pairs covering >= ratio_threshold of the GT's / the
     prediction's visible samples. category_correct: matched pairs with the right category.
-    x_error_close ... z_error_far: (len(matched),) mean |dx| / |dz| of each matched pair over
-    the samples both lanes see, NaN where they see none in that range.
+    pair_values: name (OpenLaneConfig.pair_value_names) -> (len(matched),) value of each
+    matched pair, NaN where it has none: x_error_<range> / z_error_<range> the mean |dx| /
+    |dz| over the samples of the range both lanes see; vis_iou (option) the pair's Vis-IoU.
     """
 
     gt_count: int
@@ -76,20 +132,49 @@ class FrameResult:
     recall_tp: int
     precision_tp: int
     category_correct: int
-    x_error_close: np.ndarray
-    x_error_far: np.ndarray
-    z_error_close: np.ndarray
-    z_error_far: np.ndarray
+    pair_values: dict[str, np.ndarray]
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """The frame's counts under COUNT_KEYS."""
+        return {
+            "gt_lanes": self.gt_count,
+            "pred_lanes": self.pred_count,
+            "matched": len(self.matched),
+            "recall_tp": self.recall_tp,
+            "precision_tp": self.precision_tp,
+            "category_correct": self.category_correct,
+        }
+
+    # The official errors by name.
+    @property
+    def x_error_close(self) -> np.ndarray:
+        return self.pair_values["x_error_close"]
+
+    @property
+    def x_error_far(self) -> np.ndarray:
+        return self.pair_values["x_error_far"]
+
+    @property
+    def z_error_close(self) -> np.ndarray:
+        return self.pair_values["z_error_close"]
+
+    @property
+    def z_error_far(self) -> np.ndarray:
+        return self.pair_values["z_error_far"]
 
 
 @dataclass
 class _Sampled:
-    """Lanes resampled at the y samples: x, z (L, S), visible (L, S) bool; category (L,) and
-    index (L,), the lane's position in the caller's list."""
+    """Lanes resampled at the y samples: x, z (L, S); visible (L, S) bool, the official
+    per-sample visibility (within the lane's y extent and the x range); seen (L, S) bool,
+    visible and seen by the lane's own visibility (Vis-IoU); category (L,) and index (L,),
+    the lane's position in the caller's list."""
 
     x: np.ndarray
     z: np.ndarray
     visible: np.ndarray
+    seen: np.ndarray
     category: np.ndarray
     index: np.ndarray
 
@@ -101,47 +186,81 @@ def evaluate_frame(
     pred_lanes: Sequence[np.ndarray],
     pred_categories: Sequence[int],
     config: OpenLaneConfig = OpenLaneConfig(),
+    pred_visibility: Sequence[np.ndarray] | None = None,
 ) -> FrameResult:
     """Score one frame.
 
     gt_lanes[i]: (N_i, 3) points in the evaluator's ground frame (x right, y forward, z up;
     see :func:`lanelab.metrics.openlane_io.ground_from_camera`), gt_visibility[i]: (N_i,),
     points with visibility <= 0 are dropped. pred_lanes[j]: (M_j, 3) or (M_j, 2) in the same
-    frame (2 columns: z = 0).
+    frame (2 columns: z = 0). pred_visibility[j] (optional): (M_j,) in [0, 1]; points at or
+    below config.visibility_threshold are dropped, so that the result equals that of a prediction
+    file holding only the visible points. Official OpenLane predictions carry no visibility.
     """
     y_samples = config.y_samples
-    gt_kept = []
-    for i, (lane, vis, cat) in enumerate(zip(gt_lanes, gt_visibility, gt_categories)):
-        lane = np.asarray(lane, dtype=np.float64)[np.asarray(vis) > 0]
-        if len(lane) > 1 and overlaps_y_range(lane, y_samples[-1], y_samples[0]):
-            gt_kept.append((prune_to_box(lane, config.x_range, config.prune_y_range), cat, i))
-    pred_kept = []
-    for j, (lane, cat) in enumerate(zip(pred_lanes, pred_categories)):
-        lane = np.asarray(lane, dtype=np.float64)
-        # Quirk: predictions skip the visibility step but get the same range tests.
-        if overlaps_y_range(lane, y_samples[-1], y_samples[0]):
-            pred_kept.append((prune_to_box(lane, config.x_range, config.prune_y_range), cat, j))
-    gt = _resample(gt_kept, y_samples, config)
-    pred = _resample(pred_kept, y_samples, config)
+    if pred_visibility is None:
+        pred_visibility = [np.ones(len(lane)) for lane in pred_lanes]
+    gt = _sample_lanes(gt_lanes, gt_visibility, gt_categories, lambda v: v > 0, config)
+    # Quirk: predictions skip the visibility step of the official code but get the same range
+    # tests; dropping their invisible points here stands for leaving them out of the file.
+    pred = _sample_lanes(
+        pred_lanes,
+        pred_visibility,
+        pred_categories,
+        lambda v: v > config.visibility_threshold,
+        config,
+    )
     return _match_and_count(gt, pred, y_samples, config)
 
 
-def _resample(
-    lanes: list[tuple[np.ndarray, int, int]], y_samples: np.ndarray, config: OpenLaneConfig
+def _sample_lanes(
+    lanes: Sequence[np.ndarray],
+    visibility: Sequence[np.ndarray],
+    categories: Sequence[int],
+    keep: Callable[[np.ndarray], np.ndarray],
+    config: OpenLaneConfig,
 ) -> _Sampled:
-    """Resample (points, category, index) lanes with >= 2 points; keep those with >= 2
-    visible samples."""
-    rows = [
-        (*resample_in_y(points, y_samples, config.x_range), cat, index)
-        for points, cat, index in lanes
-        if len(points) > 1
-    ]
-    rows = [row for row in rows if np.count_nonzero(row[2]) > 1]
+    """Prune and resample lanes (N_i, 2 or 3) as the official evaluator does.
+
+    A lane keeps its points whose visibility (N_i,) passes `keep`, needs two of them, a
+    first point below the last sample and a last one beyond the first (overlaps_y_range),
+    two points left in the prune box, and two visible samples.
+    """
+    y_samples = config.y_samples
+    rows = []
+    for index, (lane, vis, category) in enumerate(zip(lanes, visibility, categories)):
+        lane, vis = np.asarray(lane, dtype=np.float64), np.asarray(vis, dtype=np.float64)
+        points = lane[keep(vis)]
+        if len(points) < 2 or not overlaps_y_range(points, y_samples[-1], y_samples[0]):
+            continue
+        points = prune_to_box(points, config.x_range, config.prune_y_range)
+        if len(points) < 2:
+            continue
+        x, z, visible = resample_in_y(points, y_samples, config.x_range)
+        if np.count_nonzero(visible) < 2:
+            continue
+        seen = visible
+        if config.vis_iou:
+            seen = visible & _seen_at(lane, vis, y_samples, config.visibility_threshold)
+        rows.append((x, z, visible, seen, category, index))
     if not rows:
         empty, no_ids = np.zeros((0, len(y_samples))), np.zeros(0, dtype=np.int64)
-        return _Sampled(empty, empty, empty.astype(bool), no_ids, no_ids)
-    x, z, visible, category, index = zip(*rows)
-    return _Sampled(np.stack(x), np.stack(z), np.stack(visible), np.array(category), np.array(index))
+        return _Sampled(empty, empty, empty.astype(bool), empty.astype(bool), no_ids, no_ids)
+    x, z, visible, seen, category, index = zip(*rows)
+    return _Sampled(
+        np.stack(x), np.stack(z), np.stack(visible), np.stack(seen), np.array(category),
+        np.array(index),
+    )
+
+
+def _seen_at(
+    lane: np.ndarray, vis: np.ndarray, y_samples: np.ndarray, threshold: float
+) -> np.ndarray:
+    """(S,) bool: the lane's visibility (N,), linearly interpolated in y over all its points
+    (N, >=2), is above threshold at each y sample. Unlike the official per-sample
+    visibility, this sees occluded stretches inside the lane's extent."""
+    order = np.argsort(lane[:, 1], kind="mergesort")
+    return np.interp(y_samples, lane[order, 1], vis[order]) > threshold
 
 
 def _match_and_count(
@@ -162,14 +281,6 @@ def _match_and_count(
     # (0, 1) costs 1 -- ties between candidates that differ by less than 1 m are common.
     cost = np.where((total > 0) & (total < 1), 1, np.trunc(total)).astype(np.int64)
 
-    # Quirk: "close" is the samples up to the first y > close_range (3 .. 40 m inclusive).
-    split = int(np.argmax(y_samples > config.close_range))
-    errors = [
-        _mean_over(d, both, part)
-        for d in (dx, dz)
-        for part in (slice(None, split), slice(split, None))
-    ]
-
     matched = [
         (g, p)
         for g, p in min_cost_assignment(cost)
@@ -189,7 +300,12 @@ def _match_and_count(
         )
     rows = np.array([g for g, _ in matched], dtype=np.int64)
     cols = np.array([p for _, p in matched], dtype=np.int64)
-    x_close, x_far, z_close, z_far = (e[rows, cols] for e in errors)
+    pair_values = {}
+    for axis, d in (("x", dx[rows, cols]), ("z", dz[rows, cols])):
+        for name, part in config.error_ranges:
+            pair_values[f"{axis}_error_{name}"] = _mean_over(d, both[rows, cols], part)
+    if config.vis_iou:
+        pair_values["vis_iou"] = _visibility_iou(gt.seen[rows], pred.seen[cols])
     return FrameResult(
         gt_count=len(gt.x),
         pred_count=len(pred.x),
@@ -197,15 +313,12 @@ def _match_and_count(
         recall_tp=int(recall_tp),
         precision_tp=int(precision_tp),
         category_correct=int(category_correct),
-        x_error_close=x_close,
-        x_error_far=x_far,
-        z_error_close=z_close,
-        z_error_far=z_far,
+        pair_values=pair_values,
     )
 
 
 def _mean_over(d: np.ndarray, both: np.ndarray, part: slice) -> np.ndarray:
-    """(G, P) mean of d (G, P, S) over the samples of `part` both lanes see; NaN if none.
+    """(K,) mean of d (K, S) over the samples of `part` both lanes see; NaN if none.
 
     Written as sum(d * mask) / count like the official code: a non-finite d at a sample
     only one lane sees (an extrapolation through duplicate y values) makes the mean NaN
@@ -216,36 +329,58 @@ def _mean_over(d: np.ndarray, both: np.ndarray, part: slice) -> np.ndarray:
         return np.where(count > 0, (d[..., part] * both[..., part]).sum(axis=-1) / count, np.nan)
 
 
+def _visibility_iou(gt_seen: np.ndarray, pred_seen: np.ndarray) -> np.ndarray:
+    """(K,) Vis-IoU of K matched pairs from their seen masks (K, S); NaN if both are empty.
+
+    SparseLaneSTP (§5.1) names the metric without a formula; this is the reading the paper's
+    purpose asks for ("distinguishing visible lane segments from parts occluded ... a measure
+    for start-end range detection"): over the y samples of the evaluation range, the IoU of
+    the samples the GT lane is visible at (its per-point visibility, interpolated, within its
+    official extent) and those the predicted lane is (likewise, from its predicted
+    visibility; a prediction without visibility is visible over its extent). A missed start,
+    end or occlusion gap lowers it; geometry does not (the errors measure that). It is
+    averaged over matched pairs, like the errors. OpenLane prediction files carry no
+    visibility and hold only visible points, so from files a predicted occlusion gap is
+    bridged; fed with the model's visibility (OpenLaneMetric), it counts.
+    """
+    intersection = np.count_nonzero(gt_seen & pred_seen, axis=-1)
+    union = np.count_nonzero(gt_seen | pred_seen, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(union > 0, intersection / union, np.nan)
+
+
+def detection_scores(counts: Mapping[str, int]) -> dict[str, float]:
+    """f1, recall, precision and category_accuracy from counts summed over frames.
+
+    recall = recall_tp / gt_lanes, precision = precision_tp / pred_lanes, category accuracy
+    = category_correct / matched (all accepted pairs, true positive or not), F1 from recall
+    and precision. A ratio with a zero denominator is 0 (the official 1e-6 epsilons only act
+    there, and the numerator is then 0 too).
+    """
+    recall = _ratio(counts["recall_tp"], counts["gt_lanes"])
+    precision = _ratio(counts["precision_tp"], counts["pred_lanes"])
+    return {
+        "f1": 2 * recall * precision / (recall + precision) if recall + precision else 0.0,
+        "recall": recall,
+        "precision": precision,
+        "category_accuracy": _ratio(counts["category_correct"], counts["matched"]),
+    }
+
+
 def summarize(frames: Iterable[FrameResult]) -> dict[str, float | int]:
     """Aggregate frame results as the official evaluator does.
 
-    Counts are summed over frames, then recall = recall_tp / gt_lanes, precision =
-    precision_tp / pred_lanes, category accuracy = category_correct / matched (all accepted
-    pairs, true positive or not), F1 from recall and precision. A ratio with a zero
-    denominator is 0 (the official 1e-6 epsilons only act there, and the numerator is then
-    0 too). Errors are the mean over all accepted pairs that see a sample in the range
-    (official -1 sentinels, NaN here); NaN if there is none.
+    Counts are summed over frames, then turned into scores by :func:`detection_scores`.
+    Each pair value (errors, Vis-IoU) is the mean over all accepted pairs that have one
+    (official -1 sentinels, NaN here); NaN if there is none. Also returns num_frames and
+    the summed counts (COUNT_KEYS).
     """
     frames = list(frames)
-    totals = {
-        "gt_lanes": sum(f.gt_count for f in frames),
-        "pred_lanes": sum(f.pred_count for f in frames),
-        "matched": sum(len(f.matched) for f in frames),
-        "recall_tp": sum(f.recall_tp for f in frames),
-        "precision_tp": sum(f.precision_tp for f in frames),
-        "category_correct": sum(f.category_correct for f in frames),
-    }
-    recall = _ratio(totals["recall_tp"], totals["gt_lanes"])
-    precision = _ratio(totals["precision_tp"], totals["pred_lanes"])
-    f1 = 2 * recall * precision / (recall + precision) if recall + precision else 0.0
-    result: dict[str, float | int] = {
-        "f1": f1,
-        "recall": recall,
-        "precision": precision,
-        "category_accuracy": _ratio(totals["category_correct"], totals["matched"]),
-    }
-    for name in ("x_error_close", "x_error_far", "z_error_close", "z_error_far"):
-        values = np.concatenate([getattr(f, name) for f in frames] or [np.zeros(0)])
+    totals = {key: sum(f.counts[key] for f in frames) for key in COUNT_KEYS}
+    result: dict[str, float | int] = dict(detection_scores(totals))
+    names = frames[0].pair_values if frames else OpenLaneConfig().pair_value_names
+    for name in names:
+        values = np.concatenate([f.pair_values[name] for f in frames] or [np.zeros(0)])
         values = values[~np.isnan(values)]
         result[name] = float(values.mean()) if len(values) else float("nan")
     result["num_frames"] = len(frames)
@@ -257,19 +392,15 @@ def _ratio(numerator: int, denominator: int) -> float:
     return numerator / denominator if denominator else 0.0
 
 
-def evaluate(
+def evaluate_frames(
     gt_dir: str | os.PathLike[str],
     pred_dir: str | os.PathLike[str],
     test_list: str | os.PathLike[str],
     config: OpenLaneConfig = OpenLaneConfig(),
-) -> dict[str, float | int]:
-    """Evaluate a prediction directory against OpenLane ground truth, officially.
-
-    test_list: text file of paths relative to gt_dir and pred_dir, one a line (image paths
-    ending in .jpg name the .json beside them). Returns the :func:`summarize` dict: f1,
-    recall, precision, category_accuracy (fractions), x/z_error_close/far (metres), and the
-    counts num_frames, gt_lanes, pred_lanes, matched, recall_tp, precision_tp,
-    category_correct.
+) -> list[tuple[str, FrameResult]]:
+    """(frame id, result) of every frame of a test list, in its order (a frame listed twice
+    is scored twice, as officially). The frame id is the test-list line as
+    :func:`read_test_list` reads it (relative JSON path), the key the scenario tables use.
 
     Pairing follows the official evaluator: each listed prediction is scored against the
     ground truth whose ``file_path`` equals the prediction's ``file_path`` (not the file at
@@ -291,9 +422,26 @@ def evaluate(
                 pred_path,
                 f"file_path {pred.file_path!r} names no ground-truth frame of the test list",
             )
-        results.append(
-            evaluate_frame(
-                gt.lanes, gt.visibility, gt.categories, pred.lanes, pred.categories, config
-            )
+        result = evaluate_frame(
+            gt.lanes, gt.visibility, gt.categories, pred.lanes, pred.categories, config
         )
-    return summarize(results)
+        results.append((rel, result))
+    return results
+
+
+def evaluate(
+    gt_dir: str | os.PathLike[str],
+    pred_dir: str | os.PathLike[str],
+    test_list: str | os.PathLike[str],
+    config: OpenLaneConfig = OpenLaneConfig(),
+) -> dict[str, float | int]:
+    """Evaluate a prediction directory against OpenLane ground truth, officially.
+
+    test_list: text file of paths relative to gt_dir and pred_dir, one a line (image paths
+    ending in .jpg name the .json beside them). Returns the :func:`summarize` dict: f1,
+    recall, precision, category_accuracy (fractions), x/z_error_close/far (metres; more
+    ranges and vis_iou with the extensions of the config), and the counts num_frames,
+    gt_lanes, pred_lanes, matched, recall_tp, precision_tp, category_correct. Frames are
+    paired as :func:`evaluate_frames` pairs them.
+    """
+    return summarize(result for _, result in evaluate_frames(gt_dir, pred_dir, test_list, config))

@@ -16,7 +16,6 @@ Every problem is reported as an :class:`OpenLaneFormatError` that names the file
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass
@@ -24,6 +23,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from lanelab.metrics.json_files import (
+    LaneFileError,
+    load_json_object,
+    numeric_array,
+    require,
+    require_list,
+)
 
 # OpenLane stores lanes in the Waymo camera axes (x forward, y left, z up); this matrix maps
 # OpenCV camera axes (x right, y down, z forward) to them, and its transpose maps back.
@@ -37,13 +44,8 @@ _VEHICLE_FROM_GROUND = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1
 _GROUND_FROM_OPENCV = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
-class OpenLaneFormatError(ValueError):
-    """An OpenLane JSON file (or test list) does not have the layout the evaluator reads."""
-
-    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
-        super().__init__(f"{path}: {problem}")
-        self.path = str(path)
-        self.problem = problem
+# The error every OpenLane reader raises (the name users of evaluate() catch).
+OpenLaneFormatError = LaneFileError
 
 
 @dataclass(frozen=True)
@@ -97,20 +99,20 @@ def camera_lane_to_ground(xyz: np.ndarray, ground_T_camera: np.ndarray) -> np.nd
 
 def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
     """Read and validate one ground-truth JSON and convert its lanes to the ground frame."""
-    data = _load_json_object(path)
-    file_path = _require(data, "file_path", path)
+    data = load_json_object(path)
+    file_path = require(data, "file_path", path)
     if not isinstance(file_path, str):
         raise OpenLaneFormatError(path, "'file_path' must be a string")
-    extrinsic = _numeric_array(_require(data, "extrinsic", path), (4, 4), "'extrinsic'", path)
-    _numeric_array(_require(data, "intrinsic", path), (3, 3), "'intrinsic'", path)
+    extrinsic = numeric_array(require(data, "extrinsic", path), (4, 4), "'extrinsic'", path)
+    numeric_array(require(data, "intrinsic", path), (3, 3), "'intrinsic'", path)
     T = ground_from_camera(extrinsic)
 
     lanes, visibility, categories = [], [], []
-    for i, lane in enumerate(_lane_list(data, path)):
+    for i, lane in enumerate(require_list(data, "lane_lines", path)):
         where = f"lane_lines[{i}]"
-        xyz = _numeric_array(_require(lane, "xyz", path, where), (3, None), f"{where}.xyz", path)
-        vis = _numeric_array(
-            _require(lane, "visibility", path, where), (None,), f"{where}.visibility", path
+        xyz = numeric_array(require(lane, "xyz", path, where), (3, None), f"{where}.xyz", path)
+        vis = numeric_array(
+            require(lane, "visibility", path, where), (None,), f"{where}.visibility", path
         )
         if vis.shape[0] != xyz.shape[1]:
             raise OpenLaneFormatError(
@@ -124,14 +126,14 @@ def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
 
 def read_prediction(path: str | os.PathLike[str]) -> PredictionFrame:
     """Read and validate one prediction JSON."""
-    data = _load_json_object(path)
-    file_path = _require(data, "file_path", path)
+    data = load_json_object(path)
+    file_path = require(data, "file_path", path)
     if not isinstance(file_path, str):
         raise OpenLaneFormatError(path, "'file_path' must be a string")
     lanes, categories = [], []
-    for i, lane in enumerate(_lane_list(data, path)):
+    for i, lane in enumerate(require_list(data, "lane_lines", path)):
         where = f"lane_lines[{i}]"
-        xyz = _numeric_array(_require(lane, "xyz", path, where), (None, None), f"{where}.xyz", path)
+        xyz = numeric_array(require(lane, "xyz", path, where), (None, None), f"{where}.xyz", path)
         if xyz.shape[0] == 0 or xyz.shape[1] < 2:
             raise OpenLaneFormatError(
                 path, f"{where}.xyz must be a non-empty (N, 3) or (N, 2) list, got {xyz.shape}"
@@ -154,56 +156,13 @@ def read_test_list(path: str | os.PathLike[str]) -> list[str]:
     return [line.replace("jpg", "json").lstrip("/") for line in text.splitlines() if line.strip()]
 
 
-def _load_json_object(path: str | os.PathLike[str]) -> dict[str, Any]:
-    try:
-        with open(path) as f:
-            data = json.load(f)
-    except OSError as error:
-        raise OpenLaneFormatError(path, f"cannot read the file ({error.strerror})") from None
-    except json.JSONDecodeError as error:
-        raise OpenLaneFormatError(path, f"not valid JSON ({error})") from None
-    if not isinstance(data, dict):
-        raise OpenLaneFormatError(path, "the top level must be a JSON object")
-    return data
-
-
-def _require(obj: Any, key: str, path: str | os.PathLike[str], where: str = "") -> Any:
-    if not isinstance(obj, dict):
-        raise OpenLaneFormatError(path, f"{where or 'the top level'} must be a JSON object")
-    if key not in obj:
-        raise OpenLaneFormatError(path, f"missing key '{key}'" + (f" in {where}" if where else ""))
-    return obj[key]
-
-
-def _lane_list(data: dict[str, Any], path: str | os.PathLike[str]) -> list[Any]:
-    lanes = _require(data, "lane_lines", path)
-    if not isinstance(lanes, list):
-        raise OpenLaneFormatError(path, "'lane_lines' must be a list")
-    return lanes
-
-
-def _numeric_array(
-    value: Any, shape: tuple[int | None, ...], what: str, path: str | os.PathLike[str]
-) -> np.ndarray:
-    """value as a float64 array of the given shape (None: any length)."""
-    try:
-        array = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise OpenLaneFormatError(path, f"{what} must be a numeric array") from None
-    wrong_length = any(n is not None and n != m for n, m in zip(shape, array.shape))
-    if array.ndim != len(shape) or wrong_length:
-        expected = "(" + ", ".join("N" if n is None else str(n) for n in shape) + ")"
-        raise OpenLaneFormatError(path, f"{what} must have shape {expected}, got {array.shape}")
-    return array
-
-
 def _category(lane: dict[str, Any], path: str | os.PathLike[str], where: str, strict: bool) -> int:
     """A lane's category id.
 
     Predictions go through int() as in the official evaluator (3.0, "3" and 3.7 all read as
     3); ground-truth categories are compared as stored there, so they must be integral.
     """
-    value = _require(lane, "category", path, where)
+    value = require(lane, "category", path, where)
     if strict:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
             math.isfinite(value) and value == int(value)
