@@ -224,3 +224,11 @@ def test_fit_float32():
     fitted = fit_control_points(y, dense_samples(P, y), M, Y_START, Y_END)
     assert fitted.dtype == torch.float32
     torch.testing.assert_close(fitted, P, atol=1e-4, rtol=0)
+
+
+def test_sampling_matrix_keeps_full_precision_under_autocast():
+    s = torch.linspace(0, 1, 7)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        A = sampling_matrix(5, s)
+    assert A.dtype == torch.float32
+    torch.testing.assert_close(A, sampling_matrix(5, s))

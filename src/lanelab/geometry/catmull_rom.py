@@ -74,7 +74,13 @@ def sampling_matrix(num_control_points: int, s: Tensor, derivative: int = 0) -> 
     if not bool(((s >= -_S_TOLERANCE) & (s <= 1 + _S_TOLERANCE)).all()):
         raise ValueError("curve arguments s must lie in [0, 1]")
     s = s.clamp(0.0, 1.0)
+    # Under autocast the matmul below would come out in bf16/fp16 and no longer match the
+    # dtype of s; the basis is cheap and wants full precision anyway.
+    with torch.autocast(s.device.type, enabled=False):
+        return _sampling_matrix(num_control_points, s, derivative)
 
+
+def _sampling_matrix(num_control_points: int, s: Tensor, derivative: int) -> Tensor:
     num_segments = num_control_points - 1
     u = s * num_segments
     segment = u.floor().clamp(max=num_segments - 1)
