@@ -1,0 +1,46 @@
+"""Models: plain nn.Modules, configured by constructor arguments (see conf/model)."""
+
+from lanelab.models.backbone import ResNet
+from lanelab.models.decoder import DecoderLayer, LaneDecoder
+from lanelab.models.deformable_attention import DeformableCrossAttention
+from lanelab.models.fpn import FPN
+from lanelab.models.heads import (
+    BACKGROUND_INDEX,
+    LANE_CATEGORY_IDS,
+    NUM_LANE_CATEGORIES,
+    LaneHead,
+    category_to_index,
+    index_to_category,
+)
+from lanelab.models.losses import SparseLaneSTPLoss
+from lanelab.models.matcher import HungarianMatcher
+from lanelab.models.memory_queue import MemoryQueue, MemoryState
+from lanelab.models.positional_encoding import PointPositionalEncoding
+from lanelab.models.query_init import LaneQueryGenerator
+from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
+from lanelab.models.sta_masks import density, sta_masks
+
+__all__ = [
+    "BACKGROUND_INDEX",
+    "FPN",
+    "LANE_CATEGORY_IDS",
+    "NUM_LANE_CATEGORIES",
+    "DecoderLayer",
+    "DeformableCrossAttention",
+    "HungarianMatcher",
+    "LaneDecoder",
+    "LaneHead",
+    "LaneQueryGenerator",
+    "MemoryQueue",
+    "MemoryState",
+    "PointPositionalEncoding",
+    "ResNet",
+    "SparseLaneSTP",
+    "SparseLaneSTPLoss",
+    "SpatioTemporalAttention",
+    "category_to_index",
+    "density",
+    "index_to_category",
+    "sta_masks",
+]

@@ -1,0 +1,141 @@
+"""Prediction heads shared by all decoder layers (SparseLaneSTP eq. 5-7) and the lane representation.
+
+Every query (line i, point j) carries a control point P_ij = (x, y, z, v):
+    x = sigmoid(MLP_x(Q_ij)) * (x_e - x_s) + x_s        (eq. 5)
+    z = sigmoid(MLP_z(Q_ij)) * (z_e - z_s) + z_s        (eq. 6)
+    v = sigmoid(MLP_v(Q_ij))                            (eq. 7)
+    y = fixed, uniform in [y_s, y_e]                    (control_point_y)
+Layers refine x and z iteratively as LATR / Deformable DETR do: each layer adds its MLP
+outputs to the previous layer's pre-sigmoid values ("logits" below), so a layer predicts a
+correction, and eq. 5-6 hold with MLP(Q) standing for the accumulated sum. Visibility is
+predicted afresh by every layer, as in LATR (and literally eq. 7).
+
+Two representations of the same M points (the ablation of Table 1):
+- ``"catmull_rom"``: control points of a Catmull-Rom spline (§3.1, supplementary A);
+- ``"discrete"``: LATR's points at fixed y, linearly interpolated in between.
+Both decode as one matrix product ``basis(y) @ P``.
+
+Classification averages the M queries of a line and maps them to K categories + background.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+
+from lanelab.geometry import control_point_y, curve_arguments, sampling_matrix
+
+# OpenLane category ids (DESIGN.md, "Lane categories") in the order of the classifier's
+# outputs; the background logit comes after them, at index len(LANE_CATEGORY_IDS).
+LANE_CATEGORY_IDS: tuple[int, ...] = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 20, 21)
+NUM_LANE_CATEGORIES = len(LANE_CATEGORY_IDS)
+BACKGROUND_INDEX = NUM_LANE_CATEGORIES
+
+REPRESENTATIONS = ("catmull_rom", "discrete")
+
+
+def category_to_index(category_ids: Tensor) -> Tensor:
+    """OpenLane category ids (any shape) -> classifier indices 0..K-1; unknown ids raise."""
+    table = torch.full((max(LANE_CATEGORY_IDS) + 1,), -1, dtype=torch.long, device=category_ids.device)
+    table[list(LANE_CATEGORY_IDS)] = torch.arange(NUM_LANE_CATEGORIES, device=category_ids.device)
+    index = table[category_ids.long().clamp(0, len(table) - 1)]
+    if bool(((index < 0) | (category_ids < 0) | (category_ids >= len(table))).any()):
+        raise ValueError(f"category ids must be in {LANE_CATEGORY_IDS}")
+    return index
+
+
+def index_to_category(index: Tensor) -> Tensor:
+    """Classifier indices 0..K-1 (any shape) -> OpenLane category ids."""
+    return torch.tensor(LANE_CATEGORY_IDS, device=index.device)[index]
+
+
+def mlp(in_dim: int, hidden_dim: int, out_dim: int, num_hidden: int) -> nn.Sequential:
+    """``num_hidden`` Linear+ReLU layers, then a Linear to out_dim (LATR's branch layout)."""
+    layers: list[nn.Module] = []
+    for i in range(num_hidden):
+        layers += [nn.Linear(in_dim if i == 0 else hidden_dim, hidden_dim), nn.ReLU(inplace=True)]
+    layers.append(nn.Linear(hidden_dim if num_hidden else in_dim, out_dim))
+    return nn.Sequential(*layers)
+
+
+class LaneHead(nn.Module):
+    """Control points and classes from queries, shared across decoder layers.
+
+    embed_dim C; num_points M; num_classes K (without background); x_range, y_range, z_range:
+    (start, end) in metres; representation: "catmull_rom" or "discrete"; num_hidden: hidden
+    layers of each MLP.
+    """
+
+    def __init__(
+        self,
+        embed_dim: int,
+        num_points: int,
+        num_classes: int,
+        x_range: tuple[float, float],
+        y_range: tuple[float, float],
+        z_range: tuple[float, float],
+        representation: str,
+        num_hidden: int,
+    ) -> None:
+        super().__init__()
+        if representation not in REPRESENTATIONS:
+            raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
+        self.num_points, self.representation = num_points, representation
+        self.x_range, self.y_range, self.z_range = tuple(x_range), tuple(y_range), tuple(z_range)
+        # Three MLPs (eq. 5-7) and the classifier (K categories + background).
+        self.x_mlp = mlp(embed_dim, embed_dim, 1, num_hidden)
+        self.z_mlp = mlp(embed_dim, embed_dim, 1, num_hidden)
+        self.v_mlp = mlp(embed_dim, embed_dim, 1, num_hidden)
+        self.class_mlp = mlp(embed_dim, embed_dim, num_classes + 1, num_hidden)
+        # Non-persistent: derived from the configuration, not learned.
+        self.register_buffer("y", control_point_y(num_points, *self.y_range), persistent=False)
+
+    def refine(self, queries: Tensor, logits: Tensor) -> Tensor:
+        """queries (B, N, M, C), previous pre-sigmoid (x, z, v) logits (B, N, M, 3) -> this
+        layer's: x, z corrected, v replaced. In float32 even under bf16 autocast: 8 mantissa
+        bits of a logit are decimetres of x."""
+        x = logits[..., :1].float() + self.x_mlp(queries).float()
+        z = logits[..., 1:2].float() + self.z_mlp(queries).float()
+        return torch.cat([x, z, self.v_mlp(queries).float()], dim=-1)
+
+    def control_points(self, logits: Tensor) -> Tensor:
+        """Pre-sigmoid (x, z, v) logits (..., M, 3) -> control points (..., M, 4) = (x, y, z, v),
+        metres, at least float32."""
+        unit = logits.to(torch.promote_types(logits.dtype, torch.float32)).sigmoid()
+        x = unit[..., 0] * (self.x_range[1] - self.x_range[0]) + self.x_range[0]
+        z = unit[..., 1] * (self.z_range[1] - self.z_range[0]) + self.z_range[0]
+        y = self.y.to(x.dtype).expand_as(x)
+        return torch.stack([x, y, z, unit[..., 2]], dim=-1)
+
+    def normalise(self, points: Tensor) -> Tensor:
+        """Points (..., 4) = (x, y, z, v) in metres -> each coordinate mapped by its range to
+        [0, 1] (v as is), the input of the positional encoding. Propagated memory points may
+        fall outside [0, 1]."""
+        low = points.new_tensor([self.x_range[0], self.y_range[0], self.z_range[0], 0.0])
+        high = points.new_tensor([self.x_range[1], self.y_range[1], self.z_range[1], 1.0])
+        return (points - low) / (high - low)
+
+    def classify(self, queries: Tensor) -> Tensor:
+        """queries (B, N, M, C) -> class logits (B, N, K + 1), background last."""
+        return self.class_mlp(queries.mean(dim=-2))
+
+    def basis(self, y: Tensor) -> Tensor:
+        """(S, M) matrix A with lane(y) = A @ P for longitudinal positions y (S,) in y_range."""
+        s = curve_arguments(y, *self.y_range)
+        if not bool(((s >= -1e-6) & (s <= 1 + 1e-6)).all()):
+            raise ValueError(f"decoding positions y must lie in {self.y_range}")
+        if self.representation == "catmull_rom":
+            return sampling_matrix(self.num_points, s)
+        # Discrete: hat functions, i.e. linear interpolation between neighbouring points.
+        u = s.clamp(0, 1) * (self.num_points - 1)
+        return (1 - (u[:, None] - torch.arange(self.num_points, dtype=s.dtype, device=s.device)).abs()).clamp(min=0)
+
+    def decode(self, points: Tensor, y: Tensor) -> Tensor:
+        """Control points (..., M, 4) -> dense lanes (..., S, 4) = (x, y, z, v) at y (S,).
+
+        Visibility is clamped to [0, 1] (a spline can overshoot between control points).
+        Computed in the points' precision, also under autocast."""
+        with torch.autocast(points.device.type, enabled=False):
+            dense = self.basis(y.to(points)) @ points
+        x, _, z, v = dense.unbind(-1)
+        return torch.stack([x, y.to(points).expand_as(x), z, v.clamp(0, 1)], dim=-1)

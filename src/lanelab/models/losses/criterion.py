@@ -1,0 +1,119 @@
+"""SparseLaneSTP's training objective: matching, detection losses, priors, deep supervision.
+
+For every decoder layer (deep supervision, as DETR / LATR: each layer matched on its own):
+the predicted curves are sampled at the ground truth's y grid (curve arguments eq. 21), the
+Hungarian matcher pairs proposals with lanes, and the detection losses follow (eq. 22-24;
+unmatched proposals are background). The spatial priors act on the matched lines of every
+layer, the temporal prior on ``outputs["temporal"]`` (the current prediction and the memory).
+Every term is summed over layers and weighted by ``weights``; terms of weight 0 are skipped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import torch
+from torch import Tensor, nn
+
+from lanelab.geometry import curve_arguments, sampling_matrix
+from lanelab.models.heads import category_to_index
+from lanelab.models.losses.detection import focal_loss, regression_loss, visibility_loss
+from lanelab.models.losses.priors import curvature_excess, parallelism_and_surface, temporal_consistency
+from lanelab.models.matcher import HungarianMatcher
+
+TERMS = ("cls", "reg", "vis", "parallel", "surface", "curvature", "temporal")
+REPRESENTATIONS = ("catmull_rom", "discrete")
+
+
+class SparseLaneSTPLoss(nn.Module):
+    """matcher: a HungarianMatcher; weights: {term: weight} over TERMS (missing: 0);
+    y_range: (y_s, y_e) of the control points; num_control_points M; gamma: focal parameter;
+    representation: "catmull_rom" or "discrete" (LATR's points, linear in between);
+    max_curvature: κ_max (1/m) of the curvature prior; temporal_alpha: α of eq. 13;
+    temporal_max_distance: mean L1 distance (m) within which a past line is the same lane."""
+
+    def __init__(
+        self,
+        matcher: HungarianMatcher,
+        weights: Mapping[str, float],
+        *,
+        y_range: tuple[float, float],
+        num_control_points: int,
+        gamma: float = 2.0,
+        representation: str = "catmull_rom",
+        max_curvature: float = 0.1,
+        temporal_alpha: float = 0.5,
+        temporal_max_distance: float = 1.0,
+    ) -> None:
+        super().__init__()
+        unknown = set(weights) - set(TERMS)
+        if unknown:
+            raise ValueError(f"unknown loss terms {sorted(unknown)}; known: {TERMS}")
+        if representation not in REPRESENTATIONS:
+            raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
+        self.matcher = matcher
+        self.weights = {term: float(weights.get(term, 0.0)) for term in TERMS}
+        self.y_range, self.num_control_points = tuple(y_range), num_control_points
+        self.gamma, self.representation = gamma, representation
+        self.max_curvature = max_curvature
+        self.temporal_alpha, self.temporal_max_distance = temporal_alpha, temporal_max_distance
+
+    def forward(self, outputs: Mapping, targets: Mapping[str, Tensor]) -> dict[str, Tensor]:
+        """outputs: {"layers": [{"control_points": (B, N, M, 4), "logits": (B, N, K + 1)}, ...],
+        optionally "temporal": {"current": (B, N, M, 4), "propagated_memory": MemoryState | None}};
+        targets: the collated dataset batch: gt_y (S,) or (B, S), gt_x / gt_z / gt_vis (B, G, S),
+        gt_category (B, G) OpenLane ids, gt_mask (B, G).
+        Returns every term of TERMS (summed over layers) and "total", the weighted sum."""
+        first = outputs["layers"][0]["control_points"]
+        losses = {term: first.new_zeros(()) for term in TERMS}
+        basis = self._basis(targets["gt_y"].to(first))  # (S, M) or (B, S, M)
+        for layer in outputs["layers"]:
+            for term, value in self._layer_losses(layer["control_points"], layer["logits"], basis, targets).items():
+                losses[term] = losses[term] + value
+        if self.weights["temporal"] and "temporal" in outputs:
+            temporal = outputs["temporal"]
+            losses["temporal"] = temporal_consistency(
+                temporal["current"], temporal["propagated_memory"], self.temporal_alpha, self.temporal_max_distance
+            )
+        losses["total"] = sum(self.weights[term] * losses[term] for term in TERMS)
+        return losses
+
+    def _layer_losses(
+        self, points: Tensor, logits: Tensor, basis: Tensor, targets: Mapping[str, Tensor]
+    ) -> dict[str, Tensor]:
+        """Matching, detection losses and spatial priors of one decoder layer's output."""
+        B, N = logits.shape[:2]
+        curves = (basis[:, None] if basis.dim() == 3 else basis) @ points  # (B, N, S, 4)
+        matches = self.matcher(logits, curves, targets)
+        batch = torch.cat([torch.full_like(pred, b) for b, (pred, _) in enumerate(matches)])
+        pred = torch.cat([pred for pred, _ in matches])
+        gt = torch.cat([gt for _, gt in matches])
+
+        target = torch.full((B, N), logits.shape[-1] - 1, dtype=torch.long, device=logits.device)  # background
+        target[batch, pred] = category_to_index(targets["gt_category"][batch, gt])
+        matched = curves[batch, pred]  # (P, S, 4)
+        gt_x, gt_z, gt_vis = (targets[key][batch, gt].to(curves) for key in ("gt_x", "gt_z", "gt_vis"))
+        losses = {
+            "cls": focal_loss(logits, target, self.gamma),
+            "reg": regression_loss(matched, gt_x, gt_z, gt_vis, B * N),
+            "vis": visibility_loss(matched, gt_vis, B * N),
+        }
+        lines = torch.zeros(B, N, dtype=torch.bool, device=logits.device)
+        lines[batch, pred] = True
+        if self.weights["parallel"] or self.weights["surface"]:
+            losses["parallel"], losses["surface"] = parallelism_and_surface(points, lines)
+        if self.weights["curvature"]:
+            losses["curvature"] = curvature_excess(points, lines, self.max_curvature)
+        return losses
+
+    def _basis(self, y: Tensor) -> Tensor:
+        """(..., S, M) matrix A with curve(y) = A @ P at longitudinal positions y (..., S)."""
+        s = curve_arguments(y, *self.y_range)
+        if not bool(((s >= -1e-6) & (s <= 1 + 1e-6)).all()):
+            raise ValueError(f"the ground-truth y grid must lie inside the control points' y range {self.y_range}")
+        if self.representation == "catmull_rom":
+            return sampling_matrix(self.num_control_points, s)
+        # Discrete: hat functions, i.e. linear interpolation between neighbouring points.
+        u = s.clamp(0, 1) * (self.num_control_points - 1)
+        knots = torch.arange(self.num_control_points, dtype=s.dtype, device=s.device)
+        return (1 - (u[..., None] - knots).abs()).clamp(min=0)

@@ -1,0 +1,39 @@
+"""Detection losses of SparseLaneSTP, supplementary B (eq. 22-24).
+
+Each is a sum over proposals (and, for eq. 23-24, over ground-truth samples) divided by the N
+proposals of an image, as the paper writes them, then averaged over the batch: pass
+``normaliser`` = B · N.
+"""
+
+from __future__ import annotations
+
+import torch.nn.functional as F
+from torch import Tensor
+
+# Visibility probabilities are clamped into [eps, 1 - eps] for the BCE: the Catmull-Rom curve
+# through visibilities in (0, 1) can overshoot between control points.
+VISIBILITY_EPS = 1e-4
+
+
+def focal_loss(logits: Tensor, target: Tensor, gamma: float) -> Tensor:
+    """Eq. 22: -1/N Σ_i Σ_k Ĉ_ik (1 - C_ik)^γ log C_ik with C = softmax over K + 1 classes.
+
+    logits (B, N, K + 1); target (B, N) class indices (background = K for unmatched proposals).
+    Returns the mean over proposals and images."""
+    log_p = logits.log_softmax(-1).gather(-1, target[..., None])[..., 0]
+    return -((1 - log_p.exp()) ** gamma * log_p).mean()
+
+
+def regression_loss(curves: Tensor, gt_x: Tensor, gt_z: Tensor, gt_vis: Tensor, normaliser: int) -> Tensor:
+    """Eq. 23: Σ v̂ (|f_x(ŝ) - x̂| + |f_z(ŝ) - ẑ|) over matched lines and their ground-truth
+    samples; curves (P, S, 4) the P matched predictions at the samples' curve arguments,
+    gt_x, gt_z, gt_vis (P, S)."""
+    distance = (curves[..., 0] - gt_x).abs() + (curves[..., 2] - gt_z).abs()
+    return (distance * gt_vis).sum() / normaliser
+
+
+def visibility_loss(curves: Tensor, gt_vis: Tensor, normaliser: int) -> Tensor:
+    """Eq. 24 (printed without the minus sign of a cross-entropy): binary cross-entropy of the
+    predicted visibility f_v at every ground-truth sample of the matched lines, (P, S)."""
+    probability = curves[..., 3].clamp(VISIBILITY_EPS, 1 - VISIBILITY_EPS)
+    return F.binary_cross_entropy(probability, gt_vis, reduction="sum") / normaliser

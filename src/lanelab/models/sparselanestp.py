@@ -1,0 +1,241 @@
+"""SparseLaneSTP (Pittner et al.): the full temporal sparse 3D lane detector, Fig. 1.
+
+    image -> ResNet -> FPN -> lane query generator -> 0Q, 0P, instance masks
+          -> L decoder layers (STA with the memory queue -> DCA -> FFN), shared heads -> lP, classes
+          -> the N_mem most confident lines enter the memory queue for the next frames
+
+Two ways to run the same weights:
+- ``forward(batch)``, windowed (training, evaluation on windows): the F frames of a window are
+  unrolled oldest -> current through a fresh memory queue, reset where a frame follows padding;
+- ``reset(mask)`` / ``step(frame)``, streaming (inference, streaming training): one frame per
+  call, the memory queue carried across calls.
+Like StreamPETR, memory contents are detached: gradients never flow into earlier frames.
+
+The single-frame LATR-like baseline is a configuration of the same code: num_memory_frames=0,
+attention="global", representation="discrete".
+
+Where the paper is silent we follow LATR, except where noted: C3..C5 into a 4-level FPN; the
+query generator on the stride-8 level; post-norm decoder layers with iterative refinement.
+Unlike LATR, the initial queries 0Q are the content (LATR starts from zeros and uses them as
+positions; §3.2 feeds 0Q to the decoder) with PE(P) as positions, and the deformable attention
+samples the FPN levels directly (Deformable DETR) where LATR first fuses them into one map.
+The memory keeps the lines with the highest foreground class probability (StreamPETR's top-k
+by score, with DETR's softmax score).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import NamedTuple
+
+import torch
+from torch import Tensor, nn
+
+from lanelab.models.backbone import ResNet
+from lanelab.models.decoder import DecoderLayer, LaneDecoder
+from lanelab.models.deformable_attention import DeformableCrossAttention
+from lanelab.models.fpn import FPN
+from lanelab.models.heads import LaneHead
+from lanelab.models.memory_queue import MemoryQueue
+from lanelab.models.positional_encoding import PointPositionalEncoding
+from lanelab.models.query_init import LaneQueryGenerator
+from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
+
+# LATR's neck reads C3..C5; the query generator reads the finest FPN level (stride 8).
+_BACKBONE_STAGES = (1, 2, 3)
+
+
+class _Encoded(NamedTuple):
+    """The memory-independent part of one frame: FPN levels [(B, C, H_l, W_l)], queries 0Q
+    (B, N, M, C), initial point logits (B, N, M, 3), instance-mask logits (B, N, H/8, W/8)."""
+
+    features: list[Tensor]
+    queries: Tensor
+    logits: Tensor
+    masks: Tensor
+
+
+class SparseLaneSTP(nn.Module):
+    """All sizes come from the configuration (conf/model), none is defaulted here.
+
+    Backbone and neck: backbone_depth (18, 34, 50), backbone_width (64 = the paper's ResNet),
+    embed_dim C (FPN and queries).
+    Queries: num_lines N, num_points M, query_convs, mask_dim (the instance branch).
+    Decoder: num_layers L, num_heads, ffn_dim, dropout; deformable attention over dca_levels
+    FPN levels (LATR: 4, strides 8 to 64) with dca_points samples per head and level.
+    Attention: attention ("sparse" / "dense": STA with masked relations, "global": full
+    self-attention over the N x M queries, the LATR baseline), use_sla, use_pna, use_tca,
+    pna_neighbors (2 per adjacent line), tca_neighbors M_TCA.
+    Memory: num_memory_frames T (0 disables temporal fusion), num_memory_lines N_mem.
+    Heads: num_classes K (without background), x_range, y_range, z_range (metres),
+    representation ("catmull_rom" or "discrete"), head_hidden_layers.
+    """
+
+    def __init__(
+        self,
+        *,
+        backbone_depth: int,
+        backbone_width: int,
+        embed_dim: int,
+        num_lines: int,
+        num_points: int,
+        query_convs: int,
+        mask_dim: int,
+        num_layers: int,
+        num_heads: int,
+        ffn_dim: int,
+        dropout: float,
+        dca_levels: int,
+        dca_points: int,
+        attention: str,
+        use_sla: bool,
+        use_pna: bool,
+        use_tca: bool,
+        pna_neighbors: int,
+        tca_neighbors: int,
+        num_memory_frames: int,
+        num_memory_lines: int,
+        num_classes: int,
+        x_range: Sequence[float],
+        y_range: Sequence[float],
+        z_range: Sequence[float],
+        representation: str,
+        head_hidden_layers: int,
+    ) -> None:
+        super().__init__()
+        self.backbone = ResNet(backbone_depth, backbone_width, _BACKBONE_STAGES)
+        self.neck = FPN(self.backbone.out_channels, embed_dim, dca_levels)
+        self.query_generator = LaneQueryGenerator(
+            embed_dim, num_lines, num_points, query_convs, mask_dim, head_hidden_layers
+        )
+        head = LaneHead(
+            embed_dim, num_points, num_classes, tuple(x_range), tuple(y_range), tuple(z_range),
+            representation, head_hidden_layers,
+        )  # fmt: skip
+        layers = [
+            DecoderLayer(
+                embed_dim,
+                ffn_dim,
+                dropout,
+                SpatioTemporalAttention(
+                    embed_dim, num_heads, num_neighbors=pna_neighbors, m_tca=tca_neighbors, use_sla=use_sla,
+                    use_pna=use_pna, use_tca=use_tca, dropout=dropout, impl=attention,
+                ),  # fmt: skip
+                DeformableCrossAttention(embed_dim, num_heads, dca_levels, dca_points),
+            )
+            for _ in range(num_layers)
+        ]
+        self.decoder = LaneDecoder(layers, head, PointPositionalEncoding(embed_dim))
+        self.num_memory_frames, self.num_memory_lines = num_memory_frames, num_memory_lines
+        self._stream = MemoryQueue(num_memory_frames, num_memory_lines)  # the streaming state
+
+    @property
+    def head(self) -> LaneHead:
+        return self.decoder.head
+
+    # ----------------------------------------------------------------- windowed
+    def forward(self, batch: Mapping[str, Tensor], all_frames: bool = False) -> dict[str, Tensor]:
+        """Windowed forward over the F frames of a batch.
+
+        batch: images (B, F, 3, H, W), K (B, F, 3, 3), T_lane_cam (B, F, 4, 4),
+        T_world_lane (B, F, 4, 4), valid (B, F) bool (False: padding before a clip start);
+        K in pixels of the images as given (after any resizing).
+        Returns the current (last) frame's outputs (see ``step``). With all_frames, every
+        output gets a frame axis after the batch axis (B, F, ...) and every frame is
+        differentiable; otherwise the earlier frames only fill the memory, without gradient.
+        """
+        images, valid = batch["images"], batch["valid"]
+        B, F = images.shape[:2]
+        if all_frames or F == 1:
+            encoded = self._encode(images)
+        else:
+            with torch.no_grad():
+                encoded = self._encode(images[:, :-1])
+            encoded += self._encode(images[:, -1:])
+
+        memory = MemoryQueue(self.num_memory_frames, self.num_memory_lines)
+        outputs = []
+        for f in range(F):
+            if f > 0:  # the frame after padding starts a clip: it sees an empty memory
+                memory.reset(~valid[:, f - 1])
+            with torch.set_grad_enabled(torch.is_grad_enabled() and (all_frames or f == F - 1)):
+                outputs.append(
+                    self._decode(
+                        encoded[f],
+                        batch["K"][:, f], batch["T_lane_cam"][:, f], batch["T_world_lane"][:, f],
+                        tuple(images.shape[-2:]), memory,
+                    )  # fmt: skip
+                )
+        if not all_frames:
+            return outputs[-1]
+        return {key: torch.stack([out[key] for out in outputs], dim=_frame_axis(key)) for key in outputs[-1]}
+
+    # ---------------------------------------------------------------- streaming
+    def reset(self, mask: Tensor) -> None:
+        """Empty the streaming memory of the batch elements where mask (B,) is True (clip
+        starts). Changing the stream's batch size needs a reset of every element."""
+        self._stream.reset(mask)
+
+    def step(self, frame: Mapping[str, Tensor]) -> dict[str, Tensor]:
+        """One streaming step.
+
+        frame: images (B, 3, H, W), K (B, 3, 3), T_lane_cam (B, 4, 4), T_world_lane (B, 4, 4)
+        and optionally reset (B,) bool, which calls ``reset`` first.
+        Returns, for this frame:
+            points      (L, B, N, M, 4)  control points (x, y, z, v) of every decoder layer,
+                                         metres; [-1] is the prediction
+            logits      (L, B, N, K + 1) class logits of every layer, background last
+            init_points (B, N, M, 4)     the query generator's initial control points 0P
+            masks       (B, N, H/8, W/8) auxiliary instance-mask logits (stride of FPN level 0)
+        """
+        if "reset" in frame:
+            self.reset(frame["reset"])
+        images = frame["images"]
+        (encoded,) = self._encode(images[:, None])
+        return self._decode(
+            encoded, frame["K"], frame["T_lane_cam"], frame["T_world_lane"], tuple(images.shape[-2:]), self._stream
+        )
+
+    # ------------------------------------------------------------------ decoding
+    def decode(self, outputs: Mapping[str, Tensor], y: Tensor) -> Tensor:
+        """Dense lanes (..., N, S, 4) = (x, y, z, v) at longitudinal positions y (S,) from the
+        last layer's control points of ``forward`` / ``step`` outputs (any leading axes)."""
+        return self.head.decode(outputs["points"][-1], y)
+
+    # ----------------------------------------------------------------- internals
+    def _encode(self, images: Tensor) -> list[_Encoded]:
+        """The per-frame work, batched over frames: images (B, F, 3, H, W) -> F encodings."""
+        B, F = images.shape[:2]
+        features = self.neck(self.backbone(images.flatten(0, 1)))
+        queries, logits, masks = self.query_generator(features[0])
+        per_frame = [[level.unflatten(0, (B, F))[:, f] for level in features] for f in range(F)]
+        queries, logits, masks = (t.unflatten(0, (B, F)) for t in (queries, logits, masks))
+        return [_Encoded(per_frame[f], queries[:, f], logits[:, f], masks[:, f]) for f in range(F)]
+
+    def _decode(
+        self,
+        encoded: _Encoded,
+        K: Tensor,
+        T_lane_cam: Tensor,
+        T_world_lane: Tensor,
+        image_size: tuple[int, int],
+        memory: MemoryQueue,
+    ) -> dict[str, Tensor]:
+        """Decode one frame against the memory, then push its most confident lines."""
+        points, logits, queries = self.decoder(
+            encoded.queries, encoded.logits, memory.read(T_world_lane), encoded.features, K, T_lane_cam, image_size
+        )
+        # Confidence = the best foreground class probability (DETR's score). The queue detaches.
+        memory.push(queries, points[-1], logits[-1].softmax(-1)[..., :-1].amax(-1), T_world_lane)
+        return {
+            "points": points,
+            "logits": logits,
+            "init_points": self.head.control_points(encoded.logits),
+            "masks": encoded.masks,
+        }
+
+
+def _frame_axis(key: str) -> int:
+    """Where the frame axis goes in stacked outputs: after the batch axis, which per-layer
+    outputs (points, logits) have second."""
+    return 2 if key in ("points", "logits") else 1

@@ -1,0 +1,81 @@
+import math
+
+import torch
+
+from lanelab.geometry import control_point_y, evaluate
+from lanelab.models.heads import BACKGROUND_INDEX, LANE_CATEGORY_IDS, category_to_index
+from lanelab.models.matcher import HungarianMatcher
+
+M, Y_RANGE = 6, (3.0, 53.0)
+GT_Y = torch.linspace(3.0, 53.0, 11)
+
+
+def control_points(x0: torch.Tensor) -> torch.Tensor:
+    """(..., M, 4) gently curving visible lanes starting at x0 (...)."""
+    y = control_point_y(M, *Y_RANGE)
+    x = x0[..., None] + 2e-3 * (y - 3.0) ** 2
+    return torch.stack([x, y.expand_as(x), 0.02 * y.expand_as(x), torch.ones_like(x)], -1)
+
+
+def targets_from(points: torch.Tensor, mask: torch.Tensor, categories: torch.Tensor) -> dict:
+    """The dataset batch of lanes whose curves are exactly those of points (B, G, M, 4)."""
+    s = (GT_Y - Y_RANGE[0]) / (Y_RANGE[1] - Y_RANGE[0])
+    curves = evaluate(points, s)
+    visible = torch.ones_like(curves[..., 0]) * mask[..., None]
+    return {"gt_y": GT_Y, "gt_x": curves[..., 0], "gt_z": curves[..., 2], "gt_vis": visible,
+            "gt_category": categories, "gt_mask": mask}  # fmt: skip
+
+
+def perfect_prediction(gt_points, gt_mask, categories, order, N: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """N proposals: ground-truth lane g at proposal order[g], confident in its category; the
+    others far away and confidently background."""
+    B, G = gt_mask.shape
+    points = control_points(torch.full((B, N), 40.0))
+    logits = torch.full((B, N, BACKGROUND_INDEX + 1), -10.0)
+    logits[..., BACKGROUND_INDEX] = 10.0
+    for g in range(G):
+        points[:, order[g]] = torch.where(gt_mask[:, g, None, None], gt_points[:, g], points[:, order[g]])
+        logits[:, order[g]] = torch.where(gt_mask[:, g, None], -10.0, logits[:, order[g]])
+        index = category_to_index(categories[:, g])
+        rows = torch.arange(B)
+        logits[rows, order[g], index] = torch.where(gt_mask[:, g], 10.0, logits[rows, order[g], index])
+    return logits, points
+
+
+def test_a_perfect_prediction_matches_each_lane_to_its_proposal():
+    B, G, N = 2, 4, 7
+    gt_points = control_points(torch.tensor([[-5.0, -1.5, 2.0, 5.5], [-3.0, 0.5, 0.0, 0.0]]))
+    gt_mask = torch.tensor([[True, True, True, True], [True, True, False, False]])  # padded lanes
+    categories = torch.tensor([[1, 2, 20, 21], [7, 8, 0, 0]])
+    targets = targets_from(gt_points, gt_mask, categories)
+    s = (GT_Y - Y_RANGE[0]) / (Y_RANGE[1] - Y_RANGE[0])
+    matcher = HungarianMatcher(cost_class=1.0, cost_reg=1.0, cost_vis=1.0)
+
+    identity = torch.arange(G)
+    logits, points = perfect_prediction(gt_points, gt_mask, categories, identity, N)
+    matches = matcher(logits, evaluate(points, s), targets)
+    assert [(p.tolist(), g.tolist()) for p, g in matches] == [([0, 1, 2, 3], [0, 1, 2, 3]), ([0, 1], [0, 1])]
+
+    order = torch.tensor([5, 0, 3, 6])  # lane g sits at proposal order[g]
+    logits, points = perfect_prediction(gt_points, gt_mask, categories, order, N)
+    for b, (pred, gt) in enumerate(matches := matcher(logits, evaluate(points, s), targets)):
+        assert torch.equal(order[gt], pred)
+        assert gt_mask[b, gt].all()  # padded lanes are never matched
+    assert [len(pred) for pred, _ in matches] == [4, 2]
+
+
+def test_pair_costs_by_hand():
+    """One proposal, one lane of three samples, two of them visible."""
+    targets = {
+        "gt_x": torch.tensor([[[1.0, 2.0, 3.0]]]), "gt_z": torch.tensor([[[0.0, 0.0, 0.0]]]),
+        "gt_vis": torch.tensor([[[1.0, 1.0, 0.0]]]), "gt_category": torch.tensor([[LANE_CATEGORY_IDS[2]]]),
+        "gt_mask": torch.tensor([[True]]),
+    }  # fmt: skip
+    curves = torch.tensor([[[[1.5, 0.0, 0.0, 0.8], [2.0, 0.0, 1.0, 0.6], [9.0, 0.0, 9.0, 0.1]]]])  # (1, 1, 3, 4)
+    logits = torch.log(torch.tensor([[[0.1, 0.2, 0.5] + [0.2 / 13] * 13]]))  # p(category index 2) = 0.5
+    cost = HungarianMatcher(cost_class=2.0, cost_reg=3.0, cost_vis=5.0, gamma=2.0).cost_matrix(logits, curves, targets)
+    focal = -(0.5**2) * math.log(0.5)
+    reg = (0.5 + (0.0 + 1.0)) / 2  # mean over the two visible samples; the invisible one is ignored
+    vis = (0.2 + 0.4 + 0.1) / 3
+    assert cost.shape == (1, 1, 1)
+    assert math.isclose(cost.item(), 2 * focal + 3 * reg + 5 * vis, rel_tol=1e-5)
