@@ -1,0 +1,128 @@
+"""The LightningDataModule: clip store + dataset + temporal samplers + collate, from config.
+
+Hydra builds it from ``conf/data/clips.yaml`` with the sampler group's factories
+(``conf/sampler/window.yaml`` or ``stream.yaml``): ``instantiate(cfg.data)``, the data node
+referring to ``${sampler.train}`` and ``${sampler.eval}``. A factory is called as
+``factory(index, batch_size=..., num_frames=..., rank=..., world_size=...)`` and returns a
+sampler of :mod:`lanelab.data.samplers`, whose keys the loader batches ``batch_size`` at a time.
+The training loader uses ``train_sampler`` and the photometric augmentation; validation, test
+and prediction use ``eval_sampler`` and none. Batches are laid out as :mod:`lanelab.data.dataset`
+and :mod:`lanelab.data.collate` describe.
+
+The samplers shard the data over ranks themselves (rank and world size from the trainer), so
+the Trainer must run with ``use_distributed_sampler=False``.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import lightning.pytorch as pl
+import numpy as np
+from torch.utils.data import DataLoader, Sampler
+
+from lanelab.data.augment import PhotometricAugment
+from lanelab.data.collate import collate_samples
+from lanelab.data.dataset import ClipDataset
+from lanelab.data.frame_index import SampleKey
+from lanelab.data.targets import LaneTargets
+from lanelab.data.transforms import ResizeCrop
+
+SamplerFactory = Callable[..., Sampler[SampleKey]]
+
+
+class ClipDataModule(pl.LightningDataModule):
+    """Data loaders over the splits of a clip store.
+
+    store: the store directory. splits: which store split each stage reads ("train", "val",
+    "test", "predict" -> "train" | "val" | "test"; a missing or null stage has no loader).
+    image_size: (H, W) of the model input; crop: (top, left, height, width) source pixels cut
+    out before resizing, or None. num_frames: F per sample. y_grid: {start, stop, num} of the
+    resampled lanes; control_points: {num, y_start, y_end} of the Catmull-Rom targets.
+    max_lanes: lanes per sample after padding. mean / std: image normalisation. augment:
+    training-only photometric augmentation, or None. batch_size: samples (streams) per rank and
+    step. Defaults live in conf/data/clips.yaml.
+    """
+
+    def __init__(
+        self,
+        store: str | Path,
+        *,
+        splits: Mapping[str, str | None],
+        image_size: Sequence[int],
+        crop: Sequence[int] | None,
+        num_frames: int,
+        y_grid: Mapping[str, float],
+        control_points: Mapping[str, float],
+        max_lanes: int,
+        mean: Sequence[float],
+        std: Sequence[float],
+        augment: PhotometricAugment | None,
+        train_sampler: SamplerFactory,
+        eval_sampler: SamplerFactory,
+        batch_size: int,
+        num_workers: int,
+        pin_memory: bool,
+    ) -> None:
+        super().__init__()
+        self.store = Path(store)
+        self.splits = dict(splits)
+        self.resize = ResizeCrop(int(image_size[0]), int(image_size[1]), None if crop is None else tuple(crop))
+        self.num_frames = num_frames
+        self.targets = LaneTargets(
+            np.linspace(y_grid["start"], y_grid["stop"], int(y_grid["num"])),
+            int(control_points["num"]),
+            (float(control_points["y_start"]), float(control_points["y_end"])),
+        )
+        self.max_lanes = max_lanes
+        self.mean, self.std = tuple(mean), tuple(std)
+        self.augment = augment
+        self.train_sampler = train_sampler
+        self.eval_sampler = eval_sampler
+        self.batch_size = batch_size
+        self.num_workers = num_workers
+        self.pin_memory = pin_memory
+        self._datasets: dict[str, ClipDataset] = {}
+
+    def dataset(self, stage: str) -> ClipDataset:
+        """The dataset of a stage ("train", "val", "test", "predict"), built once."""
+        if stage not in self._datasets:
+            self._datasets[stage] = ClipDataset(
+                self.store, self.splits[stage], num_frames=self.num_frames, resize=self.resize,
+                targets=self.targets, mean=self.mean, std=self.std,
+                augment=self.augment if stage == "train" else None,
+            )
+        return self._datasets[stage]
+
+    def _loader(self, stage: str, factory: SamplerFactory) -> DataLoader | list:
+        if self.splits.get(stage) is None:
+            return []  # Lightning skips a stage without loaders
+        dataset = self.dataset(stage)
+        rank, world_size = (None, None) if self.trainer is None else (self.trainer.global_rank, self.trainer.world_size)
+        sampler = factory(
+            dataset.index, batch_size=self.batch_size, num_frames=self.num_frames, rank=rank, world_size=world_size
+        )
+        return DataLoader(
+            dataset,
+            sampler=sampler,
+            batch_size=self.batch_size,
+            collate_fn=partial(collate_samples, max_lanes=self.max_lanes),
+            num_workers=self.num_workers,
+            # The sampler runs in this process, so set_epoch reaches it with workers kept alive.
+            persistent_workers=self.num_workers > 0,
+            pin_memory=self.pin_memory,
+        )
+
+    def train_dataloader(self) -> DataLoader | list:
+        return self._loader("train", self.train_sampler)
+
+    def val_dataloader(self) -> DataLoader | list:
+        return self._loader("val", self.eval_sampler)
+
+    def test_dataloader(self) -> DataLoader | list:
+        return self._loader("test", self.eval_sampler)
+
+    def predict_dataloader(self) -> DataLoader | list:
+        return self._loader("predict", self.eval_sampler)

@@ -1,0 +1,126 @@
+"""The model-input sample of DESIGN.md's "Model contract", read from a clip store.
+
+``ClipDataset(...)[key]`` is a window of F frames of one clip ending at the key's current frame
+(oldest first, current last), with the current frame's ground truth:
+
+==================  =================  =======  ===============================================
+key                 shape              dtype    meaning
+==================  =================  =======  ===============================================
+images              (F, 3, H, W)       float32  RGB, normalised with ``mean`` / ``std``
+K                   (F, 3, 3)          float32  intrinsics of the resized / cropped images
+T_lane_cam          (F, 4, 4)          float32  camera extrinsic
+T_world_lane        (F, 4, 4)          float64  ego pose; float64 because world coordinates
+                                                reach kilometres, where float32 steps are mm
+valid               (F,)               bool     False for padding before the clip's start
+labeled             (F,)               bool     the frame has lane labels
+timestamp_ns        (F,)               int64    sensor time
+frame_index         (F,)               int64    position of the frame in its clip
+reset               ()                 bool     clear the model's memory before this sample
+padding             ()                 bool     repeats another sample; skip in metrics
+clip_id             str                         the clip
+tags                dict[str, str]              scenario tags of the current frame
+gt_y                (S,)               float32  the y grid of gt_x / gt_z / gt_vis
+gt_x, gt_z, gt_vis  (L, S)             float32  lanes at gt_y (see :mod:`targets`)
+gt_ctrl             (L, M, 4)          float32  Catmull-Rom control points x, y, z, visibility
+gt_category         (L,)               int64    OpenLane category ids
+gt_track_id         (L,)               int64    lane identity across frames
+==================  =================  =======  ===============================================
+
+L is the number of kept lanes of this frame (0 when it is unlabeled); the collate pads it.
+Padding at clip starts: a window reaching back before its clip's first frame repeats that
+first frame (valid False). Anchor3DLane-T, whose sampling Bi²Lane follows, pads with the
+current frame instead, unmasked; the first frame is the nearest real frame to the missing
+ones and keeps the window in time order, and the mask lets a model ignore it either way.
+StreamPETR (SparseLaneSTP's streaming) needs no padding: its memory is reset there instead.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from lanelab.data.augment import PhotometricAugment
+from lanelab.data.clip_store import ClipStore
+from lanelab.data.frame_index import FrameIndex, SampleKey, consecutive_offsets
+from lanelab.data.image_codec import decode_image
+from lanelab.data.targets import LaneTargets
+from lanelab.data.transforms import ResizeCrop
+
+
+class ClipDataset(Dataset):
+    """Windows of frames of the clips of one split of a store.
+
+    ``dataset[i]`` (an int) is the window of ``num_frames`` consecutive frames ending at frame
+    i of :attr:`index` (reset at clip starts); samplers ask for other windows with a
+    :class:`SampleKey`. ``augment`` (training only) jitters all frames of a sample alike.
+    The store holds no open file: each read opens its clip file in whichever process (a
+    DataLoader worker) reads, so nothing is shared across forks.
+    """
+
+    def __init__(
+        self,
+        store_dir: str | Path,
+        split: str,
+        *,
+        num_frames: int,
+        resize: ResizeCrop,
+        targets: LaneTargets,
+        mean: Sequence[float],
+        std: Sequence[float],
+        augment: PhotometricAugment | None = None,
+    ) -> None:
+        self.store = ClipStore(store_dir)
+        clip_ids = [clip.clip_id for clip in self.store.clips_in(split)]
+        if not clip_ids:
+            raise ValueError(f"{self.store.root}: the store has no clips in split {split!r}")
+        self.index = FrameIndex.from_store(self.store, clip_ids)
+        self.offsets = consecutive_offsets(num_frames)
+        self.resize = resize
+        self.targets = targets
+        # mean / std are for RGB in [0, 1]; images arrive as 0..255.
+        self.mean = 255.0 * torch.tensor(mean, dtype=torch.float32).view(3, 1, 1)
+        self.std = 255.0 * torch.tensor(std, dtype=torch.float32).view(3, 1, 1)
+        self.augment = augment
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __getitem__(self, key: int | SampleKey) -> dict[str, Any]:
+        if not isinstance(key, SampleKey):
+            key = SampleKey(int(key), self.offsets, reset=bool(self.index.is_clip_start(int(key))))
+        clip, current = self.index.locate(key.frame)
+        clip_id = self.index.clip_ids[clip]
+        wanted = current - np.asarray(key.offsets)
+        positions = np.maximum(wanted, 0).tolist()  # before the clip's start: its first frame, masked
+        first = min(positions)
+        records = self.store.read_frames(clip_id, first, current + 1)
+        frames = [records[p - first] for p in positions]
+
+        # Padding repeats a frame: decode and resize each distinct frame once.
+        prepared = {p: self.resize(decode_image(records[p - first]), records[p - first].K) for p in set(positions)}
+        images = np.stack([prepared[p][0] for p in positions])  # (F, H, W, 3) uint8
+        if self.augment is not None:
+            images = self.augment(images)
+        # Channels first while still uint8 (4x fewer bytes to move), then normalise in place.
+        images = torch.from_numpy(images).permute(0, 3, 1, 2).contiguous().float()
+        now = frames[-1]
+        return {
+            "images": images.sub_(self.mean).div_(self.std),
+            "K": torch.from_numpy(np.stack([prepared[p][1] for p in positions])).float(),
+            "T_lane_cam": torch.from_numpy(np.stack([f.T_lane_cam for f in frames])).float(),
+            "T_world_lane": torch.from_numpy(np.stack([f.T_world_lane for f in frames])).double(),
+            "valid": torch.from_numpy(wanted >= 0),
+            "labeled": torch.tensor([f.labeled for f in frames]),
+            "timestamp_ns": torch.tensor([f.timestamp_ns for f in frames], dtype=torch.int64),
+            "frame_index": torch.tensor(positions, dtype=torch.int64),
+            "reset": torch.tensor(key.reset),
+            "padding": torch.tensor(key.padding),
+            "clip_id": clip_id,
+            "tags": dict(now.tags),
+            "gt_y": torch.from_numpy(self.targets.y).float(),
+            **{name: torch.from_numpy(value) for name, value in self.targets(now.lanes).items()},
+        }
