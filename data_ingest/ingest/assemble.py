@@ -1,0 +1,244 @@
+"""Frames from a log's contents: each image with its calibration, pose, extrinsic, label and tags.
+
+For the images of a log, in stamp order (all lookups vectorised over the log):
+
+- calibration: the nearest calibration message (within ``tolerances.calibration_s`` if set);
+- ego pose ``T_world_lane = T_world_base · T_base_lane``, world <- ego interpolated in the TF tree;
+- extrinsic ``T_lane_cam = T_lane_base · T_base_cam``, ego <- the image's ``frame_id``;
+- label: the nearest image within ``tolerances.label_s`` takes a label; its points, in the
+  label's frame at the label's stamp, are carried through the world frame into that image's
+  lane frame: ``p_lane = T_world_lane(t_image)^-1 · T_world_F(t_label) · p``;
+- tags: the last tags message stamped at most ``tolerances.tags_s`` after the image.
+
+An image that cannot be completed is dropped with a reason; images without a label stay as
+unlabeled frames. A log whose TF tree never connects the world, ego and camera frames is
+unusable (:class:`LogError`).
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import torch
+
+from data_ingest.ingest.config import IngestConfig
+from data_ingest.ingest.errors import LogError
+from data_ingest.ingest.messages import LanesMsg
+from data_ingest.ingest.scan import ImageRef, LogContents
+from data_ingest.ingest.tf_tree import TfTree
+from lanelab.data.clip_store import FrameRecord, LaneRecord
+from lanelab.geometry import T_BASE_LANE, T_LANE_BASE, invert
+
+_T_BASE_LANE = T_BASE_LANE.numpy()
+_T_LANE_BASE = T_LANE_BASE.numpy()
+
+
+@dataclass(frozen=True)
+class PlannedFrame:
+    """A frame ready to be written but for its image bytes (``record.image`` is empty; they are in ``image.data``)."""
+
+    record: FrameRecord
+    image: ImageRef
+
+
+@dataclass
+class Assembled:
+    frames: list[PlannedFrame] = field(default_factory=list)  # in time order
+    dropped: Counter = field(default_factory=Counter)  # frames dropped, by reason
+    notes: list[str] = field(default_factory=list)  # label and TF problems, one line each
+
+
+def assemble(path: Path, contents: LogContents, cfg: IngestConfig) -> Assembled:
+    """Complete every image of ``contents`` into a frame, or drop it with a reason."""
+    out = Assembled(dropped=Counter(contents.dropped))
+    images = _in_stamp_order(contents.images, cfg.topics.image, out)
+    if not images:
+        return out
+    _check_tree(path, contents.tf, cfg, {image.frame_id for image in images})
+    stamps = np.array([image.stamp_ns for image in images], dtype=np.int64)
+    keep = _Keep(np.ones(len(images), dtype=bool), out.dropped)
+    K = _calibrations(contents, images, stamps, cfg, keep)
+    T_world_base = _lookup(contents.tf, cfg.frames.world, cfg.frames.ego, stamps, keep, "ego pose")
+    T_base_cam = np.empty((len(images), 4, 4))
+    frame_ids = np.array([image.frame_id for image in images])
+    for frame_id in np.unique(frame_ids):
+        on = frame_ids == frame_id
+        T_base_cam[on] = _lookup(contents.tf, cfg.frames.ego, str(frame_id), stamps, keep, "camera extrinsic", on)[on]
+    T_world_lane = T_world_base @ _T_BASE_LANE
+    T_lane_cam = _T_LANE_BASE @ T_base_cam
+
+    kept = np.flatnonzero(keep.mask)
+    lanes = _labels(contents, stamps[kept], T_world_lane[kept], cfg, out.notes)
+    tags = _tags(contents, stamps[kept], cfg)
+    for n, i in enumerate(kept):
+        image = images[i]
+        record = FrameRecord(
+            timestamp_ns=int(image.stamp_ns), image=b"", image_encoding=image.encoding,
+            width=image.width, height=image.height, K=K[i], T_lane_cam=T_lane_cam[i],
+            T_world_lane=T_world_lane[i], labeled=n in lanes, lanes=lanes.get(n, []), tags=tags[n])
+        out.frames.append(PlannedFrame(record, image))
+    if contents.tf.conflicts:
+        out.notes.append("TF frames with two parents (the first kept): " + ", ".join(
+            f"{child} under {parent} ({n} ignored)" for (child, parent), n in sorted(contents.tf.conflicts.items())))
+    return out
+
+
+def _in_stamp_order(images: Sequence[ImageRef], topic: str, out: Assembled) -> list[ImageRef]:
+    """Images sorted by stamp (a note says how many came out of order); repeated stamps dropped."""
+    stamps = np.array([image.stamp_ns for image in images], dtype=np.int64)
+    back = np.diff(stamps) < 0
+    if back.any():
+        out.notes.append(f"{topic}: {int(back.sum())} image stamps out of order (largest step back "
+                         f"{-np.diff(stamps).min() / 1e9:.3f} s); frames are ordered by stamp")
+    ordered = [images[i] for i in np.argsort(stamps, kind="stable")]
+    unique = [image for k, image in enumerate(ordered) if k == 0 or image.stamp_ns != ordered[k - 1].stamp_ns]
+    if len(unique) < len(ordered):
+        out.dropped["repeated image timestamp (the first image kept)"] += len(ordered) - len(unique)
+    return unique
+
+
+def _check_tree(path: Path, tf: TfTree, cfg: IngestConfig, camera_frames: set[str]) -> None:
+    """Raise LogError unless the TF tree connects world <- ego <- every camera frame."""
+    world, ego = cfg.frames.world, cfg.frames.ego
+    for a, b, what in [(world, ego, "world and ego"),
+                       *((ego, camera, "ego and camera") for camera in sorted(camera_frames))]:
+        if not tf.connected(a, b):
+            raise LogError(f"{path}: the TF tree never connects the {what} frames {a!r} and {b!r} "
+                           f"(frames.world={world}, frames.ego={ego}, camera from the images' frame_id); "
+                           f"/tf and /tf_static hold: {tf.describe()}")
+
+
+def _nearest(stamps: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Index into sorted ``stamps`` (M,) of the nearest to each of ``targets`` (N,) -> (N,) int."""
+    right = np.clip(np.searchsorted(stamps, targets), 0, len(stamps) - 1)
+    left = np.clip(right - 1, 0, len(stamps) - 1)
+    return np.where(np.abs(stamps[left] - targets) <= np.abs(stamps[right] - targets), left, right)
+
+
+@dataclass
+class _Keep:
+    """Which images are still in, (N,) bool, and why the others were dropped."""
+
+    mask: np.ndarray
+    dropped: Counter
+
+    def drop(self, which: np.ndarray, reason: str) -> None:
+        """Drop the images of ``which`` (N,) bool still in; count them under ``reason``."""
+        which = which & self.mask
+        if which.any():
+            self.dropped[reason] += int(which.sum())
+            self.mask &= ~which
+
+
+def _calibrations(contents: LogContents, images: Sequence[ImageRef], stamps: np.ndarray, cfg: IngestConfig,
+                  keep: _Keep) -> np.ndarray:
+    """K (N, 3, 3) of each image from the nearest calibration; drops images without a usable one."""
+    topic, tolerance = cfg.topics.calibration, cfg.tolerances.calibration_s
+    if not contents.calibrations:
+        keep.drop(keep.mask, f"no calibration message on {topic}")
+        return np.zeros((len(stamps), 3, 3))
+    calibrations = sorted(contents.calibrations, key=lambda c: c.stamp_ns)
+    cal_stamps = np.array([c.stamp_ns for c in calibrations], dtype=np.int64)
+    index = _nearest(cal_stamps, stamps)
+    K = np.stack([c.K for c in calibrations])[index]
+    if tolerance is not None:
+        keep.drop(np.abs(cal_stamps[index] - stamps) > tolerance * 1e9,
+                  f"no calibration on {topic} within tolerances.calibration_s={tolerance}")
+    keep.drop(~(np.isfinite(K).all(axis=(1, 2)) & (K[:, 0, 0] > 0) & (K[:, 1, 1] > 0)),
+              "calibration K is not a pinhole matrix (zero or non-finite focal length)")
+    sizes = np.array([(c.width, c.height) for c in calibrations], dtype=np.int64)[index]  # 0: not said
+    actual = np.array([(image.width, image.height) for image in images], dtype=np.int64)
+    keep.drop((sizes > 0).all(axis=1) & (sizes != actual).any(axis=1),
+              "image size differs from its calibration's width x height")
+    return K
+
+
+def _lookup(tf: TfTree, target: str, source: str, stamps: np.ndarray, keep: _Keep, what: str,
+            where: np.ndarray | None = None) -> np.ndarray:
+    """T_target_source (N, 4, 4) at the ``stamps`` of images ``where`` (N,) bool (default all).
+
+    Drops the images where it is undefined (outside the TF samples) or not finite.
+    """
+    where = np.ones(len(stamps), dtype=bool) if where is None else where
+    T = np.full((len(stamps), 4, 4), np.nan)
+    valid = np.zeros(len(stamps), dtype=bool)
+    T[where], valid[where], gap = tf.lookup(target, source, stamps[where])
+    if gap is not None:
+        keep.drop(where & ~valid, f"no {what}: TF {tf.parent(gap)} -> {gap} has no samples around the image "
+                                  f"time (it covers {tf.time_range(gap)})")
+    keep.drop(where & ~np.isfinite(T).all(axis=(1, 2)), f"{what} {target} <- {source} has NaN or inf")
+    return T
+
+
+def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray, cfg: IngestConfig,
+            notes: list[str]) -> dict[int, list[LaneRecord]]:
+    """Lanes of the frames (by index into ``stamps``) that a label matches; problems go to ``notes``."""
+    topic, world = cfg.topics.lanes, cfg.frames.world
+    if not contents.labels or not len(stamps):
+        if contents.labels:
+            notes.append(f"{topic}: {len(contents.labels)} labels, but no frame to match them")
+        return {}
+    label_stamps = np.array([label.stamp_ns for label in contents.labels], dtype=np.int64)
+    frame = _nearest(stamps, label_stamps)
+    near = np.abs(stamps[frame] - label_stamps) <= cfg.tolerances.label_s * 1e9
+    if not near.all():
+        notes.append(f"{topic}: {int((~near).sum())} labels matched no image within tolerances.label_s="
+                     f"{cfg.tolerances.label_s}")
+    # A frame matched by several labels takes the nearest.
+    best: dict[int, int] = {}
+    for k in np.flatnonzero(near):
+        f = int(frame[k])
+        if f not in best or abs(label_stamps[k] - stamps[f]) < abs(label_stamps[best[f]] - stamps[f]):
+            best[f] = int(k)
+    by_frame_id: dict[str, list[tuple[int, int]]] = defaultdict(list)  # label frame_id -> [(frame, label)]
+    for f, k in best.items():
+        by_frame_id[contents.labels[k].frame_id].append((f, k))
+
+    lanes: dict[int, list[LaneRecord]] = {}
+    for frame_id, pairs in sorted(by_frame_id.items()):
+        if not contents.tf.connected(world, frame_id):
+            notes.append(f"{topic}: {len(pairs)} labels in frame {frame_id!r}, which the TF tree never connects "
+                         f"to {world!r}: dropped")
+            continue
+        T_world_label, valid, _ = contents.tf.lookup(world, frame_id, label_stamps[[k for _, k in pairs]])
+        valid &= np.isfinite(T_world_label).all(axis=(1, 2))
+        if not valid.all():
+            notes.append(f"{topic}: {int((~valid).sum())} labels in frame {frame_id!r} at times TF cannot place "
+                         f"in {world!r}: dropped")
+        frames = [f for f, _ in pairs]
+        T_lane_label = invert(torch.from_numpy(T_world_lane[frames])).numpy() @ T_world_label
+        for (f, k), T, ok in zip(pairs, T_lane_label, valid):
+            if ok:
+                lanes[f] = _lanes_in_lane_frame(contents.labels[k], T)
+    return lanes
+
+
+def _lanes_in_lane_frame(label: LanesMsg, T_lane_label: np.ndarray) -> list[LaneRecord]:
+    """A label's lanes mapped by T_lane_label (4, 4): float32 points sorted by y, non-finite points dropped."""
+    lane = np.repeat(np.arange(len(label.num_points)), label.num_points)  # (P,) lane of each point
+    points = label.points @ T_lane_label[:3, :3].T + T_lane_label[:3, 3]
+    finite = np.isfinite(points).all(axis=1) & np.isfinite(label.visibility)
+    order = np.flatnonzero(finite)
+    order = order[np.lexsort((points[order, 1], lane[order]))]  # by lane, then y
+    counts = np.bincount(lane[order], minlength=len(label.num_points))
+    split_at = np.cumsum(counts)[:-1]
+    return [LaneRecord(int(track_id), int(category), p, v)
+            for track_id, category, p, v, n in zip(label.track_ids, label.categories,
+                                                   np.split(points[order].astype(np.float32), split_at),
+                                                   np.split(label.visibility[order].astype(np.float32), split_at),
+                                                   counts)
+            if n]
+
+
+def _tags(contents: LogContents, stamps: np.ndarray, cfg: IngestConfig) -> list[dict[str, str]]:
+    """Per frame, the tags of the last tags message stamped at most tolerances.tags_s after it ({} if none)."""
+    if not contents.tags:
+        return [{} for _ in stamps]
+    tags = sorted(contents.tags, key=lambda t: t.stamp_ns)
+    tag_stamps = np.array([t.stamp_ns for t in tags], dtype=np.int64)
+    index = np.searchsorted(tag_stamps, stamps + int(cfg.tolerances.tags_s * 1e9), side="right") - 1
+    return [dict(tags[i].tags) if i >= 0 else {} for i in index]

@@ -1,0 +1,41 @@
+"""``lanelab-ingest``: MCAP drive logs -> one clip store.
+
+    lanelab-ingest input=PATH_OR_GLOB output=STORE_DIR [topics.image=... frames.world=... workers=N ...]
+
+Options are Hydra overrides of ``conf/ingest.yaml`` (Hydra rejects unknown keys and wrong
+types by name). Exits with status 1 when a log failed (the others are ingested all the
+same) and 2 when the options, the input or the output cannot work.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import hydra
+from omegaconf import DictConfig, OmegaConf
+
+from data_ingest.ingest.config import register_schema, validate
+from data_ingest.synth.config import ConfigError
+
+register_schema()
+
+
+@hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="ingest")
+def _run(cfg: DictConfig) -> None:
+    from data_ingest.ingest.ingest import FAILED, ingest  # heavy imports only once the options are good
+
+    try:
+        results = ingest(validate(OmegaConf.to_object(cfg)))
+    except ConfigError as err:
+        print(f"lanelab-ingest: {err}", file=sys.stderr)
+        sys.exit(2)
+    if any(result.status == FAILED for result in results):
+        sys.exit(1)
+
+
+def main() -> None:
+    _run()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,108 @@
+"""Typed schema of ``conf/ingest.yaml`` and the checks run before any log is read.
+
+The defaults live in ``conf/ingest.yaml``; this module only says which keys exist, their
+types (OmegaConf rejects an unknown key or a wrong type by name) and which values make
+sense (:func:`validate`). Topic and frame names are the drive-log contract's, shared with
+``lanelab-synth``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any, Optional, Sequence
+
+from hydra import compose, initialize_config_module
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, OmegaConf
+
+from data_ingest.synth.config import ConfigError, FramesConfig, TopicsConfig
+
+SPLIT_BY = ("log", "clip")
+
+
+@dataclass
+class TolerancesConfig:
+    label_s: float = MISSING
+    calibration_s: Optional[float] = None
+    tags_s: float = MISSING
+
+
+@dataclass
+class ClipsConfig:
+    gap_s: float = MISSING
+    max_length_s: float = MISSING
+    target_fps: Optional[float] = None
+
+
+@dataclass
+class SplitConfig:
+    by: str = MISSING
+    seed: int = MISSING
+    train: float = MISSING
+    val: float = MISSING
+    test: float = MISSING
+
+
+@dataclass
+class IngestConfig:
+    input: str = MISSING
+    output: str = MISSING
+    workers: int = MISSING
+    overwrite: bool = MISSING
+    topics: TopicsConfig = field(default_factory=TopicsConfig)
+    frames: FramesConfig = field(default_factory=FramesConfig)
+    tolerances: TolerancesConfig = field(default_factory=TolerancesConfig)
+    clips: ClipsConfig = field(default_factory=ClipsConfig)
+    split: SplitConfig = field(default_factory=SplitConfig)
+
+
+def store_options(cfg: IngestConfig) -> dict[str, Any]:
+    """The options that shape a store's contents (recorded in its manifest); not input, output, workers."""
+    return {key: asdict(getattr(cfg, key)) for key in ("topics", "frames", "tolerances", "clips", "split")}
+
+
+def _positive(key: str, value: float | None) -> None:
+    if value is not None and not value > 0:
+        raise ConfigError(f"{key}={value!r} must be > 0")
+
+
+def validate(cfg: IngestConfig) -> IngestConfig:
+    """Check every option; raise :class:`ConfigError` naming the first bad key."""
+    if not cfg.input:
+        raise ConfigError("input is empty: give a log, a folder or a glob")
+    if not cfg.output:
+        raise ConfigError("output is empty: give the clip store directory")
+    _positive("workers", cfg.workers)
+    for key in ("label_s", "calibration_s", "tags_s"):
+        value = getattr(cfg.tolerances, key)
+        if value is not None and value < 0:
+            raise ConfigError(f"tolerances.{key}={value!r} must be >= 0")
+    _positive("clips.gap_s", cfg.clips.gap_s)
+    _positive("clips.max_length_s", cfg.clips.max_length_s)
+    _positive("clips.target_fps", cfg.clips.target_fps)
+    if cfg.clips.target_fps is not None and 1 / cfg.clips.target_fps >= cfg.clips.gap_s:
+        raise ConfigError(f"clips.target_fps={cfg.clips.target_fps} keeps frames further apart than "
+                          f"clips.gap_s={cfg.clips.gap_s}: every frame would be its own clip")
+    if cfg.split.by not in SPLIT_BY:
+        raise ConfigError(f"split.by={cfg.split.by!r} is not one of {', '.join(SPLIT_BY)}")
+    ratios = {name: getattr(cfg.split, name) for name in ("train", "val", "test")}
+    if any(value < 0 for value in ratios.values()) or abs(sum(ratios.values()) - 1) > 1e-6:
+        raise ConfigError(f"split ratios {ratios} must be >= 0 and sum to 1")
+    for group in ("topics", "frames"):
+        for key, value in asdict(getattr(cfg, group)).items():
+            if not value:
+                raise ConfigError(f"{group}.{key} is empty")
+    return cfg
+
+
+def register_schema() -> None:
+    """Make the schema known to Hydra as ``ingest_schema`` (the first entry of conf/ingest.yaml's defaults)."""
+    ConfigStore.instance().store(name="ingest_schema", node=IngestConfig)
+
+
+def load_ingest_config(overrides: Sequence[str] = ()) -> IngestConfig:
+    """Compose ``conf/ingest.yaml`` with Hydra overrides and validate it, as ``lanelab-ingest`` does."""
+    register_schema()
+    with initialize_config_module(config_module="lanelab.conf", version_base="1.3"):
+        cfg = compose(config_name="ingest", overrides=list(overrides))
+    return validate(OmegaConf.to_object(cfg))

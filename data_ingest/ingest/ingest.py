@@ -1,0 +1,301 @@
+"""Drive logs -> one clip store: which logs need work, the work on each, and the manifest.
+
+:func:`ingest` finds the logs of ``cfg.input`` (a file, a folder searched for ``*.mcap``, or
+a glob), skips those the store already holds unchanged (same name, same sha256, clips
+present), and ingests the others, in ``cfg.workers`` processes: read (:mod:`scan`),
+complete the frames (:mod:`assemble`), cut and write clips (:mod:`clips`). After each log
+the manifest is rewritten atomically, so an interrupted run keeps every finished log and
+the next run resumes with the rest. A log that fails is reported and the others go on.
+
+A log is known by its name (file stem). Its clip ids are ``<name>_<fingerprint>_<k>``
+where the fingerprint hashes the log's sha256 and the store options: re-ingesting a
+changed log writes new files, switches the manifest to them, then deletes the old ones,
+so the store is consistent at every moment.
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import json
+import multiprocessing as mp
+import time
+from collections import Counter
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, ThreadPoolExecutor, wait
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable, Iterator
+
+import numpy as np
+from tqdm import tqdm
+
+from data_ingest.ingest.assemble import PlannedFrame, assemble
+from data_ingest.ingest.clips import cut, draw_split, log_name, split_key, subsample
+from data_ingest.ingest.config import IngestConfig, store_options
+from data_ingest.ingest.errors import LogError
+from data_ingest.ingest.mcap_reader import ReadReport
+from data_ingest.ingest.scan import scan_log
+from data_ingest.ingest.spill import Spill
+from data_ingest.ingest.summary import print_summary
+from data_ingest.synth.config import ConfigError
+from lanelab.data.clip_store import (
+    ClipEntry,
+    Manifest,
+    ManifestError,
+    SourceEntry,
+    clip_path,
+    manifest_path,
+    read_manifest,
+    write_clip,
+    write_manifest,
+)
+
+INGESTED, UNCHANGED, FAILED = "ingested", "unchanged", "failed"
+
+
+@dataclass
+class LogResult:
+    """What happened to one log."""
+
+    path: str
+    status: str  # ingested | unchanged | failed
+    sha256: str = ""
+    clips: list[ClipEntry] = field(default_factory=list)
+    num_frames: int = 0
+    labeled: int = 0
+    dropped: Counter = field(default_factory=Counter)  # frames, by reason
+    warnings: list[str] = field(default_factory=list)
+    error: str | None = None
+    seconds: float = 0.0
+
+    @property
+    def name(self) -> str:
+        return log_name(Path(self.path).stem)
+
+
+def find_logs(input_: str) -> list[Path]:
+    """The logs of ``input_``: a file, every ``*.mcap`` below a folder, or the files a glob matches."""
+    path = Path(input_)
+    if path.is_file():
+        return [path]
+    if path.is_dir():
+        return sorted(path.rglob("*.mcap"))
+    return sorted(Path(match) for match in glob.glob(input_, recursive=True) if Path(match).is_file())
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        while block := handle.read(1 << 22):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def fingerprint(sha256: str, options: dict) -> str:
+    """8 hex digits naming what a log's clips were made from: its bytes and the store options."""
+    return hashlib.sha256(f"{sha256}/{json.dumps(options, sort_keys=True)}".encode()).hexdigest()[:8]
+
+
+# --- one log ---------------------------------------------------------------------------------
+
+def ingest_log(path: Path, known_sha256: str | None, cfg: IngestConfig,
+               progress: Callable[[int], None] = lambda n: None) -> LogResult:
+    """Ingest the log at ``path`` into ``cfg.output`` unless its sha256 is ``known_sha256``.
+
+    Writes its clip files (each atomically) but not the manifest; never raises for a bad log.
+    ``progress(n)`` gets the bytes of the log read since its last call.
+    """
+    start = time.perf_counter()
+    size = path.stat().st_size
+    read = 0
+
+    def count(n: int) -> None:
+        nonlocal read
+        read += n
+        progress(n)
+
+    result = LogResult(str(path), INGESTED)
+    with ThreadPoolExecutor(max_workers=1) as hasher:
+        sha256 = hasher.submit(file_sha256, path)  # hashlib releases the GIL: a new log is hashed while read
+        if known_sha256 is not None and sha256.result() == known_sha256:
+            result.status = UNCHANGED
+        else:
+            report = ReadReport(size)
+            try:
+                _ingest(path, cfg, report, result, sha256, count)
+            except LogError as err:
+                result.status, result.error, result.clips = FAILED, str(err), []
+            except Exception as err:  # whatever else a damaged log provokes, the other logs go on
+                result.status, result.clips = FAILED, []
+                result.error = f"{path}: cannot be ingested: {type(err).__name__}: {err}"
+            result.warnings[:0] = report.problems()
+        result.sha256 = sha256.result()
+    progress(size - read)
+    result.seconds = time.perf_counter() - start
+    return result
+
+
+def _ingest(path: Path, cfg: IngestConfig, report: ReadReport, result: LogResult, sha256: Future,
+            progress: Callable[[int], None]) -> None:
+    Path(cfg.output).mkdir(parents=True, exist_ok=True)
+    with Spill(cfg.output) as spill:
+        contents = scan_log(path, cfg, spill, report, progress)
+        result.warnings += [f"{n} message(s) skipped on {reason}"
+                            for reason, n in sorted(contents.bad_messages.items())]
+        assembled = assemble(path, contents, cfg)
+        result.dropped, result.warnings = assembled.dropped, result.warnings + assembled.notes
+        frames = assembled.frames
+        keep = subsample(np.array([f.record.timestamp_ns for f in frames], dtype=np.int64), cfg.clips.target_fps)
+        if not keep.all():
+            result.dropped[f"left out for clips.target_fps={cfg.clips.target_fps}"] += int((~keep).sum())
+            frames = [frame for frame, kept in zip(frames, keep) if kept]
+        if not frames:
+            reasons = "; ".join(f"{n} x {reason}" for reason, n in result.dropped.most_common())
+            raise LogError(f"{path}: no usable frame" + (f" ({reasons})" if reasons else " (no images)"))
+        result.clips = _write_clips(path, frames, spill, sha256.result(), cfg)
+        result.num_frames = len(frames)
+        result.labeled = sum(frame.record.labeled for frame in frames)
+
+
+def _write_clips(path: Path, frames: list[PlannedFrame], spill: Spill, sha256: str,
+                 cfg: IngestConfig) -> list[ClipEntry]:
+    name = log_name(path.stem)
+    prefix = f"{name}_{fingerprint(sha256, store_options(cfg))}"
+    stamps = np.array([frame.record.timestamp_ns for frame in frames], dtype=np.int64)
+    entries = []
+    for index, part in enumerate(cut(stamps, cfg.clips.gap_s, cfg.clips.max_length_s)):
+        clip_id = f"{prefix}_{index:03d}"
+        write_clip(cfg.output, clip_id, _with_images(frames[part], spill))
+        entries.append(ClipEntry(clip_id, str(path), draw_split(split_key(name, index, cfg.split), cfg.split),
+                                 len(frames[part]), int(stamps[part][0]), int(stamps[part][-1])))
+    return entries
+
+
+def _with_images(frames: list[PlannedFrame], spill: Spill) -> Iterator:
+    """The frames' records with their image bytes, loaded one at a time."""
+    return (replace(frame.record, image=spill.get(frame.image.data)) for frame in frames)
+
+
+# --- the store ---------------------------------------------------------------------------------
+
+def _open_manifest(cfg: IngestConfig) -> Manifest:
+    """The store's manifest (a new one if there is none); refuses a store made with other options."""
+    options = store_options(cfg)
+    if not manifest_path(cfg.output).exists():
+        return Manifest(options=options)
+    manifest = read_manifest(cfg.output)  # a garbled manifest stops the run: nothing is overwritten
+    if manifest.options != options:
+        changed = ", ".join(_differences(manifest.options, options)) or "unrecorded options"
+        if not cfg.overwrite:
+            raise ConfigError(f"{manifest_path(cfg.output)} was made with other options ({changed}); "
+                              "write to a new output, or pass overwrite=true to re-ingest the logs with these")
+        manifest.options = options
+    return manifest
+
+
+def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
+    out = []
+    for key in sorted(set(old) | set(new)):
+        a, b = old.get(key), new.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += _differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            out.append(f"{prefix}{key}: {a!r} -> {b!r}")
+    return out
+
+
+def _known_sha256(manifest: Manifest, name: str, cfg: IngestConfig) -> str | None:
+    """The sha256 of the log ``name`` as the store holds it, if all its clips are there (and not overwriting)."""
+    source = next((s for s in manifest.sources if log_name(Path(s.path).stem) == name), None)
+    if source is None or cfg.overwrite:
+        return None
+    clips = [clip for clip in manifest.clips if clip.source == source.path]
+    return source.sha256 if all(clip_path(cfg.output, clip.clip_id).exists() for clip in clips) else None
+
+
+def _record(manifest: Manifest, result: LogResult, cfg: IngestConfig) -> None:
+    """Put an ingested log into the manifest (replacing its earlier version), write it, delete stale clips."""
+    old_paths = {s.path for s in manifest.sources if log_name(Path(s.path).stem) == result.name}
+    stale = [clip for clip in manifest.clips if clip.source in old_paths]
+    manifest.sources = sorted([s for s in manifest.sources if s.path not in old_paths]
+                              + [SourceEntry(result.path, result.sha256, result.num_frames)], key=lambda s: s.path)
+    manifest.clips = sorted([c for c in manifest.clips if c.source not in old_paths] + result.clips,
+                            key=lambda c: c.clip_id)
+    write_manifest(cfg.output, manifest)
+    new_ids = {clip.clip_id for clip in result.clips}
+    for clip in stale:
+        if clip.clip_id not in new_ids:
+            clip_path(cfg.output, clip.clip_id).unlink(missing_ok=True)
+
+
+# --- a run -----------------------------------------------------------------------------------
+
+def ingest(cfg: IngestConfig) -> list[LogResult]:
+    """Ingest ``cfg.input`` into the store ``cfg.output``; print a progress bar and a closing summary.
+
+    Raises ConfigError when there is no log or the store cannot take these options.
+    """
+    logs = find_logs(cfg.input)
+    if not logs:
+        raise ConfigError(f"input={cfg.input!r}: no MCAP log there (a file, a folder of *.mcap or a glob)")
+    try:
+        manifest = _open_manifest(cfg)
+    except ManifestError as err:
+        raise ConfigError(f"output={cfg.output!r} holds a manifest that cannot be read: {err}") from None
+    start = time.perf_counter()
+    results: dict[str, LogResult] = {}
+    todo: list[tuple[Path, str | None]] = []
+    names: dict[str, Path] = {}
+    for path in logs:
+        name = log_name(path.stem)
+        if name in names:
+            results[str(path)] = LogResult(str(path), FAILED, error=f"{path}: has the same name as {names[name]}; "
+                                                                    "a store knows logs by name: rename one")
+            continue
+        names[name] = path
+        todo.append((path, _known_sha256(manifest, name, cfg)))
+
+    total = sum(path.stat().st_size for path, _ in todo)
+    with tqdm(total=total, unit="B", unit_scale=True, desc="lanelab-ingest", dynamic_ncols=True,
+              disable=None) as bar:
+        for result in _run(todo, cfg, bar):
+            if result.status == INGESTED:
+                _record(manifest, result, cfg)
+            results[result.path] = result
+    in_order = [results[str(path)] for path in logs]
+    print_summary(in_order, manifest, time.perf_counter() - start)
+    return in_order
+
+
+def _run(todo: list[tuple[Path, str | None]], cfg: IngestConfig, bar: tqdm) -> Iterator[LogResult]:
+    """Results of ingesting each log, as they finish (in worker processes when cfg.workers > 1)."""
+    if cfg.workers == 1 or len(todo) < 2:
+        for path, known in todo:
+            yield ingest_log(path, known, cfg, bar.update)
+        return
+    ctx = mp.get_context("fork")
+    counter = ctx.Value("q", 0)
+    with ProcessPoolExecutor(min(cfg.workers, len(todo)), mp_context=ctx, initializer=_init_worker,
+                             initargs=(counter,)) as pool:
+        pending = {pool.submit(_worker, path, known, cfg) for path, known in todo}
+        while pending:
+            done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+            bar.update(counter.value - bar.n)
+            yield from (future.result() for future in done)
+
+
+_counter = None  # bytes read, shared with the worker processes
+
+
+def _init_worker(counter) -> None:
+    global _counter
+    _counter = counter
+
+
+def _count_bytes(n: int) -> None:
+    with _counter.get_lock():
+        _counter.value += n
+
+
+def _worker(path: Path, known: str | None, cfg: IngestConfig) -> LogResult:
+    return ingest_log(path, known, cfg, _count_bytes)

@@ -1,0 +1,128 @@
+"""One pass over a drive log: the messages the ingestor needs, decoded; image bytes set aside.
+
+Every topic of the options is read in one pass (:func:`scan_log`). Image bytes go to a
+:class:`~data_ingest.ingest.spill.Spill`; only their stamps, frames and sizes stay in
+memory. A topic whose schema is unknown, or a required topic without messages, makes
+the log unusable (:class:`LogError`); a single message that cannot be decoded is counted
+and skipped.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from data_ingest.ingest.config import IngestConfig
+from data_ingest.ingest.errors import LogError
+from data_ingest.ingest.mcap_reader import ReadReport, read_messages
+from data_ingest.ingest.messages import (
+    CALIBRATION,
+    IMAGE,
+    LANES,
+    TAGS,
+    TRANSFORMS,
+    CalibrationMsg,
+    Decoder,
+    LanesMsg,
+    MessageError,
+    TagsMsg,
+    check_schema,
+    parse_lanes3d,
+    type_name,
+)
+from data_ingest.ingest.spill import Spill, SpillRef
+from data_ingest.ingest.tf_tree import TfTree
+
+LABEL_BATCH = 64  # label payloads parsed together (Arrow's JSON reader is fastest on batches)
+
+
+@dataclass(frozen=True)
+class ImageRef:
+    """An image of the log; its bytes are in the spill at ``data``."""
+
+    stamp_ns: int
+    frame_id: str
+    encoding: str
+    width: int
+    height: int
+    data: SpillRef
+
+
+@dataclass
+class LogContents:
+    """What a log holds for the ingestor; images in file order, the rest as read."""
+
+    images: list[ImageRef] = field(default_factory=list)
+    calibrations: list[CalibrationMsg] = field(default_factory=list)
+    tf: TfTree = field(default_factory=TfTree)
+    labels: list[LanesMsg] = field(default_factory=list)
+    tags: list[TagsMsg] = field(default_factory=list)
+    dropped: Counter = field(default_factory=Counter)  # image messages unusable, by reason
+    bad_messages: Counter = field(default_factory=Counter)  # other messages skipped, by "topic: reason"
+
+
+def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
+             progress: Callable[[int], None] | None = None) -> LogContents:
+    """Read every message of the configured topics of the log at ``path``."""
+    topics = cfg.topics
+    roles = {topics.image: IMAGE, topics.calibration: CALIBRATION, topics.tf: TRANSFORMS,
+             topics.tf_static: TRANSFORMS, topics.lanes: LANES, topics.tags: TAGS}
+    contents, decoder = LogContents(), Decoder()
+    checked: set[int] = set()
+    label_batch: list[bytes] = []
+    # Labels are parsed on a second thread while the scan goes on: Arrow's JSON reader releases the GIL.
+    with ThreadPoolExecutor(max_workers=1) as label_parser:
+        parsed: list[Future] = []
+        for raw in read_messages(path, roles, report, progress):
+            role = roles[raw.topic]
+            if raw.channel.id not in checked:
+                check_schema(path, raw.topic, role, raw.schema, raw.channel.message_encoding)
+                checked.add(raw.channel.id)
+            try:
+                if role == LANES:  # parsed in batches
+                    label_batch.append(raw.data)
+                    if len(label_batch) == LABEL_BATCH:
+                        parsed.append(label_parser.submit(parse_lanes3d, label_batch))
+                        label_batch = []
+                    continue
+                record = decoder.decode(raw, role)
+                if role == IMAGE:
+                    contents.images.append(ImageRef(record.stamp_ns, record.frame_id, record.encoding, record.width,
+                                                    record.height, spill.put(record.data)))
+                elif role == CALIBRATION:
+                    contents.calibrations.append(record)
+                elif role == TRANSFORMS:
+                    for transform in record:
+                        contents.tf.add(transform, static=raw.topic == topics.tf_static)
+                else:
+                    contents.tags.append(record)
+            except MessageError as err:
+                if role == IMAGE:
+                    contents.dropped[f"image message unusable: {err}"] += 1
+                else:
+                    contents.bad_messages[f"{raw.topic}: {err}"] += 1
+        _check_required(path, cfg, report)
+        parsed.append(label_parser.submit(parse_lanes3d, label_batch))
+        for label in (label for future in parsed for label in future.result()):
+            if isinstance(label, MessageError):
+                contents.bad_messages[f"{topics.lanes}: {label}"] += 1
+            else:
+                contents.labels.append(label)
+    return contents
+
+
+def _check_required(path: Path, cfg: IngestConfig, report: ReadReport) -> None:
+    """Raise :class:`LogError` when the image, calibration or /tf topic has no message; list what the log has."""
+    topics = cfg.topics
+    missing = [topic for topic in (topics.image, topics.calibration, topics.tf) if report.topics[topic] == 0]
+    if not missing:
+        return
+    if not report.topics:
+        raise LogError(f"{path}: the log has no channels and no messages")
+    have = ", ".join(f"{topic} ({type_name(report.schemas.get(topic)) or 'no schema'}, {count} messages)"
+                     for topic, count in sorted(report.topics.items()))
+    raise LogError(f"{path}: missing required topic{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
+                   f"(set topics.* to the log's names); the log has: {have}")

@@ -1,0 +1,42 @@
+"""The closing summary of ``lanelab-ingest``: a line per log, its problems, then totals."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from lanelab.data.clip_store import SPLITS, Manifest
+
+if TYPE_CHECKING:
+    from data_ingest.ingest.ingest import LogResult
+
+
+def print_summary(results: list[LogResult], manifest: Manifest, seconds: float) -> None:
+    print(f"\n{'log':<32}{'status':>10}{'frames':>8}{'clips':>7}{'labeled':>9}{'dropped':>9}")
+    for r in results:
+        counts = f"{r.num_frames:>8}{len(r.clips):>7}{_percent(r.labeled, r.num_frames):>9}" \
+                 f"{sum(r.dropped.values()):>9}" if r.status == "ingested" else ""
+        print(f"{Path(r.path).name:<32}{r.status:>10}{counts}")
+        if r.error:
+            print(f"    error: {r.error}")
+        for warning in r.warnings:
+            print(f"    warning: {warning}")
+
+    statuses = Counter(r.status for r in results)
+    frames = sum(r.num_frames for r in results)
+    labeled = sum(r.labeled for r in results)
+    dropped = sum((r.dropped for r in results), Counter())
+    print(f"{len(results)} logs: " + ", ".join(f"{n} {status}" for status, n in sorted(statuses.items()))
+          + f"; {frames} frames ingested in {seconds:.1f} s ({frames / max(seconds, 1e-9):.0f} frames/s), "
+          + f"{_percent(labeled, frames)} labeled, {sum(dropped.values())} dropped"
+          + (":" if dropped else ""))
+    for reason, n in dropped.most_common():
+        print(f"{n:>8}  {reason}")
+    splits = Counter(clip.split for clip in manifest.clips)
+    print(f"store: {len(manifest.clips)} clips, {sum(c.num_frames for c in manifest.clips)} frames from "
+          f"{len(manifest.sources)} logs (" + ", ".join(f"{s} {splits[s]}" for s in SPLITS) + " clips)")
+
+
+def _percent(part: int, whole: int) -> str:
+    return f"{100 * part / whole:.1f}%" if whole else "-"
