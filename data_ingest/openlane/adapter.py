@@ -1,0 +1,212 @@
+"""OpenLane (annotation JSONs + images) -> one clip store, each segment a clip.
+
+    <annotations>/<split folder>/<segment>/<timestamp>.json  ->  <output>/clips/<segment>.parquet
+
+Every segment folder of the split folders named in ``splits`` (OpenLane's ``training`` and
+``validation`` -> the store's ``train`` and ``val`` by default) becomes a clip of that
+split, its frames in time order. Each frame gets
+
+- its image: the bytes of ``<images>/<file_path>`` as they are, size from the header;
+- K, T_lane_cam, lanes and T_world_lane from :func:`~data_ingest.openlane.annotation.read_annotation`
+  (the lane frame of an OpenLane store is the evaluator's ground frame, see there). A
+  segment whose files carry no ``pose`` (OpenLane before v1.2) gets the identity for every
+  frame and is listed under ``clips_without_pose`` in the manifest's options: its frames
+  cannot be related to one another;
+- ``labeled`` True, and tags: ``openlane.file_path`` (the ground truth's ``file_path``, which
+  prediction files repeat); for each scenario list naming the frame, ``<case>: <label>``
+  (``curve: Curve``), so that :func:`lanelab.metrics.scenarios.tag_scenarios` with groups
+  ``{case: "OpenLane"}`` gives the papers' scenario columns; from ``scene.json``,
+  ``environment``, ``weather`` and ``daytime`` (its scene, weather and time), the columns of
+  SparseLaneSTP's Table 7.
+
+Re-running is cheap: a segment whose annotation files and tags are unchanged (the sha256 the
+manifest holds for it), and its split too, keeps its clip. Each clip is written atomically and the manifest
+after each segment, so an interrupted run resumes. A segment that cannot be read is
+reported, naming the file, and the others go on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator, Mapping, Sequence
+
+import numpy as np
+
+from data_ingest.openlane.annotation import Annotation, read_annotation, timestamp_ns
+from data_ingest.openlane.config import OpenLaneAdapterConfig
+from data_ingest.synth.config import ConfigError
+from lanelab.data.clip_store import (
+    ClipEntry,
+    FrameRecord,
+    Manifest,
+    SourceEntry,
+    clip_path,
+    manifest_path,
+    read_manifest,
+    write_clip,
+    write_manifest,
+)
+from lanelab.data.image_codec import compressed_format, compressed_size
+from lanelab.evaluation.scenario_lists import read_scenario_lists
+from lanelab.metrics.json_files import LaneFileError, load_json_object
+from lanelab.metrics.scenarios import OPENLANE_SCENARIOS
+
+FILE_PATH_TAG = "openlane.file_path"
+MADE_BY = "lanelab-openlane"
+LANE_FRAME = "OpenLane evaluator's ground frame: x right, y forward, z up; origin below the camera"
+# scene.json key -> frame tag (the tag keys of the scenario tables)
+SCENE_TAGS = {"scene": "environment", "weather": "weather", "time": "daytime"}
+WRITTEN, KEPT, FAILED = "written", "kept", "failed"
+
+
+@dataclass
+class SegmentResult:
+    """What became of one segment: status WRITTEN, KEPT or FAILED (error says why)."""
+
+    segment: str
+    status: str
+    num_frames: int = 0
+    has_pose: bool = True
+    error: str = ""
+
+
+def adapt(cfg: OpenLaneAdapterConfig) -> list[SegmentResult]:
+    """Make or update the store ``cfg.output``; one result per segment found, in order.
+
+    Raises ConfigError when the output is a store made by another tool, LaneFileError when a
+    scenario list or scene.json cannot be read; a bad segment only fails itself.
+    """
+    case_lists = read_scenario_lists(cfg.scenario_lists) if cfg.scenario_lists else {}
+    scenes = _read_scenes(cfg.scene_tags) if cfg.scene_tags else {}
+    manifest = _open_manifest(Path(cfg.output))
+    results = []
+    for folder, split in cfg.splits.items():
+        split_dir = Path(cfg.annotations) / folder
+        if not split_dir.is_dir():
+            print(f"lanelab-openlane: no split folder {split_dir}, skipped")
+            continue
+        for segment_dir in sorted(path for path in split_dir.iterdir() if path.is_dir()):
+            segment = segment_dir.name
+            scene = scenes.get(segment) or scenes.get(segment.removesuffix("_with_camera_labels"), {})
+            try:
+                result = _adapt_segment(segment_dir, split, cfg, manifest, case_lists, scene)
+            except ValueError as err:  # LaneFileError names the file; the store's own checks name the clip
+                result = SegmentResult(segment, FAILED, error=str(err))
+            results.append(result)
+            if result.status == WRITTEN:
+                write_manifest(cfg.output, manifest)
+    return results
+
+
+def _adapt_segment(
+    segment_dir: Path,
+    split: str,
+    cfg: OpenLaneAdapterConfig,
+    manifest: Manifest,
+    case_lists: Mapping[str, frozenset[str]],
+    scene: Mapping[str, str],
+) -> SegmentResult:
+    """Write one segment's clip unless the manifest holds it unchanged; update the manifest."""
+    segment = segment_dir.name
+    paths = sorted(segment_dir.glob("*.json"), key=timestamp_ns)
+    if not paths:
+        raise LaneFileError(segment_dir, "no annotation files (*.json) in this segment")
+    tags = [_frame_tags(f"{segment}/{path.stem}", case_lists, scene) for path in paths]
+    source = str(segment_dir.resolve())
+    sha256 = _fingerprint(paths, tags)
+    if _holds(manifest, source, sha256, segment, split) and clip_path(cfg.output, segment).exists():
+        return SegmentResult(segment, KEPT, len(paths), segment not in _without_pose(manifest))
+
+    annotations = [read_annotation(path) for path in paths]
+    has_pose = all(a.T_world_lane is not None for a in annotations)
+    write_clip(cfg.output, segment, _frames(annotations, tags, Path(cfg.images), has_pose))
+
+    manifest.sources = [s for s in manifest.sources if s.path != source]
+    manifest.sources.append(SourceEntry(source, sha256, len(paths)))
+    manifest.clips = [c for c in manifest.clips if c.clip_id != segment]
+    manifest.clips.append(ClipEntry(segment, source, split, len(paths),
+                                    annotations[0].timestamp_ns, annotations[-1].timestamp_ns))
+    without_pose = _without_pose(manifest) - {segment}
+    if not has_pose:
+        without_pose.add(segment)
+    manifest.options["clips_without_pose"] = sorted(without_pose)
+    return SegmentResult(segment, WRITTEN, len(paths), has_pose)
+
+
+def _frames(
+    annotations: Sequence[Annotation], tags: Sequence[dict[str, str]], images: Path, has_pose: bool
+) -> Iterator[FrameRecord]:
+    """The segment's frames (annotations and their tags), each image read only when its row
+    group is written."""
+    for annotation, frame_tags in zip(annotations, tags):
+        image_path = images / annotation.file_path
+        if not image_path.is_file():
+            raise LaneFileError(image_path, f"no such image (the file_path of the frame at {annotation.timestamp_ns} ns)")
+        image = image_path.read_bytes()
+        encoding = compressed_format(image)
+        if encoding is None:
+            raise LaneFileError(image_path, "not a JPEG or PNG image")
+        width, height = compressed_size(image, encoding)
+        yield FrameRecord(
+            timestamp_ns=annotation.timestamp_ns,
+            image=image,
+            image_encoding=encoding,
+            width=width,
+            height=height,
+            K=annotation.K,
+            T_lane_cam=annotation.T_lane_cam,
+            T_world_lane=annotation.T_world_lane if has_pose else np.eye(4),
+            labeled=True,
+            lanes=annotation.lanes,
+            tags={FILE_PATH_TAG: annotation.file_path, **frame_tags},
+        )
+
+
+def _frame_tags(key: str, case_lists: Mapping[str, frozenset[str]], scene: Mapping[str, str]) -> dict[str, str]:
+    """A frame's scenario tags: its cases (by frame key, "<segment>/<timestamp>") and its scene."""
+    tags = {case: OPENLANE_SCENARIOS.get(case, case) for case, keys in case_lists.items() if key in keys}
+    return {**tags, **scene}
+
+
+def _read_scenes(path: str) -> dict[str, dict[str, str]]:
+    """scene.json -> segment -> {environment, weather, daytime}."""
+    data = load_json_object(path)
+    scenes = {}
+    for segment, scene in data.items():
+        if not isinstance(scene, dict):
+            raise LaneFileError(path, f"'{segment}' must map to an object of scene, weather and time")
+        scenes[segment] = {tag: str(scene[key]) for key, tag in SCENE_TAGS.items() if key in scene}
+    return scenes
+
+
+def _fingerprint(paths: Sequence[Path], tags: Sequence[dict[str, str]]) -> str:
+    """sha256 of a segment's annotation files (names and bytes) and of the tags given to its frames."""
+    digest = hashlib.sha256()
+    for path in paths:
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    digest.update(json.dumps(tags, sort_keys=True).encode())
+    return digest.hexdigest()
+
+
+def _open_manifest(output: Path) -> Manifest:
+    """The store's manifest, or a new one; refuses a store that another tool made."""
+    if not manifest_path(output).exists():
+        return Manifest(options={"made_by": MADE_BY, "lane_frame": LANE_FRAME, "clips_without_pose": []})
+    manifest = read_manifest(output)
+    if manifest.options.get("made_by") != MADE_BY:
+        raise ConfigError(f"output={str(output)!r} holds a store that {MADE_BY} did not make; choose another output")
+    return manifest
+
+
+def _holds(manifest: Manifest, source: str, sha256: str, clip_id: str, split: str) -> bool:
+    """Whether the manifest lists the source with this sha256 and its clip in this split."""
+    return any(s.path == source and s.sha256 == sha256 for s in manifest.sources) and \
+        any(c.clip_id == clip_id and c.split == split for c in manifest.clips)
+
+
+def _without_pose(manifest: Manifest) -> set[str]:
+    return set(manifest.options.get("clips_without_pose", []))

@@ -1,0 +1,99 @@
+"""``lanelab-eval``: the OpenLane metric over prediction files, printed and written as the
+papers' tables, with pictures of a few frames.
+
+    lanelab-eval gt=DIR pred=DIR test_list=FILE out=DIR [long_range=true] [scenario_lists=DIR] [images=DIR]
+
+Options are Hydra overrides of ``conf/eval.yaml``. Writes ``<out>/report.json``,
+``<out>/report.md`` and ``<out>/pictures.png``. Exits with status 1 on a malformed or
+missing input file (the message names it) and 2 on a bad option.
+
+Hook for evaluating a checkpoint on a clip store (issue 6, not implemented here): :func:`run`
+gets its frame results from :func:`evaluate_prediction_files` and its pictures from
+:func:`~lanelab.evaluation.pictures.read_openlane_frame`. A checkpoint run replaces just
+these two sources and keeps the rest (report, tables, files): it decodes the model on each
+labeled frame of the store's split and scores the decoded lanes against the frame's lanes
+with :func:`lanelab.metrics.openlane.evaluate_frame` (frame ids ``"<clip_id>/<timestamp_ns>"``;
+scenarios from the frames' ``tags`` with :func:`lanelab.metrics.scenarios.tag_scenarios`),
+and draws :class:`~lanelab.evaluation.pictures.PictureFrame` s from the frames' images, K and
+T_lane_cam. Its options (``checkpoint=FILE store=DIR split=...``) join ``conf/eval.yaml`` then,
+with gt / pred / test_list becoming the alternative.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import hydra
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import MissingMandatoryValue
+
+from lanelab.evaluation.config import ConfigError, EvalConfig, register_schema, validate
+from lanelab.metrics.json_files import LaneFileError
+from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
+
+PICTURES_PNG = "pictures.png"
+
+register_schema()
+
+
+def evaluate_prediction_files(cfg: EvalConfig, config: OpenLaneConfig) -> list[tuple[str, FrameResult]]:
+    """(frame id, result) of every frame of the test list, scored from the files."""
+    results = evaluate_frames(cfg.gt, cfg.pred, cfg.test_list, config)
+    if not results:
+        raise LaneFileError(cfg.test_list, "the test list names no frame")
+    return results
+
+
+def run(cfg: EvalConfig) -> list[Path]:
+    """Evaluate, print the tables, write the report and the pictures; the paths written.
+
+    Raises LaneFileError (naming the file) for a malformed or missing input.
+    """
+    # Heavy imports (torch, via the pictures) only once the options are good.
+    from lanelab.evaluation.pictures import draw_pictures, pick_frames, read_openlane_frame, write_png
+    from lanelab.evaluation.report import build_report, to_text, write_report
+    from lanelab.evaluation.scenario_lists import read_scenario_lists, scenarios_of
+
+    config = OpenLaneConfig.long_range() if cfg.long_range else OpenLaneConfig()
+    results = evaluate_prediction_files(cfg, config)
+    scenarios = []
+    if cfg.scenario_lists is not None:
+        scenarios = scenarios_of(read_scenario_lists(cfg.scenario_lists), (name for name, _ in results))
+    inputs = {"gt": cfg.gt, "pred": cfg.pred, "test list": cfg.test_list}
+    report = build_report(results, config, scenarios, inputs)
+    print(to_text(report))
+    written = write_report(report, cfg.out)
+
+    chosen = pick_frames(len(results), cfg.pictures.num_frames)
+    if chosen:
+        frames = [read_openlane_frame(cfg.gt, cfg.pred, results[i][0], cfg.images) for i in chosen]
+        picture = draw_pictures(frames, cfg.pictures.height, (0.0, float(config.y_range[1])))
+        written.append(write_png(Path(cfg.out) / PICTURES_PNG, picture))
+    print("wrote " + ", ".join(str(path) for path in written))
+    return written
+
+
+@hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="eval")
+def _run(cfg: DictConfig) -> None:
+    try:
+        eval_cfg = validate(OmegaConf.to_object(cfg))
+    except MissingMandatoryValue as err:
+        print(f"lanelab-eval: missing option {err.full_key}=...", file=sys.stderr)
+        sys.exit(2)
+    except ConfigError as err:
+        print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
+        sys.exit(2)
+    try:
+        run(eval_cfg)
+    except LaneFileError as err:
+        print(f"lanelab-eval: {err}", file=sys.stderr)
+        sys.exit(1)
+
+
+def main() -> None:
+    _run()
+
+
+if __name__ == "__main__":
+    main()

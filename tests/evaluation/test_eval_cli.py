@@ -1,0 +1,95 @@
+"""lanelab-eval end to end: prints the tables, writes JSON, Markdown and pictures; malformed
+inputs and bad options are named."""
+
+import json
+import subprocess
+import sys
+
+import cv2
+import pytest
+from eval_helpers import NAMES, write_prediction_set
+
+from lanelab.evaluation.cli import run
+from lanelab.evaluation.config import ConfigError, load_eval_config
+from lanelab.metrics.json_files import LaneFileError
+
+
+def options(data, out, *extra):
+    return [f"gt={data.gt}", f"pred={data.pred}", f"test_list={data.test_list}", f"out={out}", *extra]
+
+
+def run_eval(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "lanelab.evaluation.cli", *args],
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_the_command_prints_the_tables_and_writes_the_report_and_pictures(tmp_path):
+    data = write_prediction_set(tmp_path)
+    out = tmp_path / "out"
+    result = run_eval(*options(data, out, f"scenario_lists={data.scenario_lists}", "pictures.height=96"))
+    assert result.returncode == 0, result.stderr
+    assert "Overall" in result.stdout and "Cat. acc. (%)" in result.stdout
+    assert "80.0  100.0   66.7  83.3" in result.stdout  # All, Curve, Night, Mean
+    assert f"wrote {out / 'report.json'}, {out / 'report.md'}, {out / 'pictures.png'}" in result.stdout
+
+    assert json.loads((out / "report.json").read_text())["overall"]["f1"] == pytest.approx(0.8)
+    assert "| All | Curve | Night | Mean |" in (out / "report.md").read_text()
+    picture = cv2.imread(str(out / "pictures.png"))
+    assert picture.shape[0] == 3 * 96  # one row per frame (3 frames, 4 asked)
+
+
+def test_long_range_and_no_pictures(tmp_path, capsys):
+    data = write_prediction_set(tmp_path)
+    written = run(load_eval_config(options(data, tmp_path / "out", "long_range=true", "pictures.num_frames=0")))
+    assert [path.name for path in written] == ["report.json", "report.md"]
+    assert "x err. 150-200 (m)" in capsys.readouterr().out
+    assert json.loads(written[0].read_text())["metric"]["extra_ranges"] == [100.0, 150.0]
+
+
+def test_a_malformed_prediction_is_named(tmp_path):
+    data = write_prediction_set(tmp_path)
+    bad = data.pred_file("b")
+    bad.write_text(json.dumps({"file_path": NAMES["b"]}))
+    result = run_eval(*options(data, tmp_path / "out"))
+    assert result.returncode == 1
+    assert f"lanelab-eval: {bad}: missing key 'lane_lines'" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_a_prediction_of_another_frame_is_named(tmp_path):
+    data = write_prediction_set(tmp_path)
+    bad = data.pred_file("c")
+    content = json.loads(bad.read_text())
+    content["file_path"] = "validation/segment-9/1.jpg"
+    bad.write_text(json.dumps(content))
+    with pytest.raises(LaneFileError, match=f"{bad}: file_path 'validation/segment-9/1.jpg' names no ground-truth"):
+        run(load_eval_config(options(data, tmp_path / "out")))
+
+
+def test_a_missing_prediction_and_an_empty_test_list_are_named(tmp_path):
+    data = write_prediction_set(tmp_path)
+    data.pred_file("a").unlink()
+    with pytest.raises(LaneFileError, match=f"{data.pred_file('a')}: cannot read the file"):
+        run(load_eval_config(options(data, tmp_path / "out")))
+    data.test_list.write_text("\n")
+    with pytest.raises(LaneFileError, match="names no frame"):
+        run(load_eval_config(options(data, tmp_path / "out")))
+
+
+@pytest.mark.parametrize("option, message", [
+    ("pictures.height=10", "pictures.height"),
+    ("scenario_lists=/no/such/folder", "scenario_lists"),
+])
+def test_bad_options_are_named(tmp_path, option, message):
+    data = write_prediction_set(tmp_path)
+    with pytest.raises(ConfigError, match=message):
+        load_eval_config(options(data, tmp_path / "out", option))
+
+
+def test_the_command_names_unknown_and_missing_options(tmp_path):
+    data = write_prediction_set(tmp_path)
+    unknown = run_eval(*options(data, tmp_path / "out", "long_rnage=true"))
+    assert unknown.returncode != 0 and "long_rnage" in unknown.stderr + unknown.stdout
+    missing = run_eval(f"pred={data.pred}")
+    assert missing.returncode == 2 and "missing option gt" in missing.stderr
+    assert not (tmp_path / "out").exists()
