@@ -14,10 +14,10 @@ import sys
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from data_ingest.ingest.config import register_schema, validate
-from data_ingest.synth.config import ConfigError
+from data_ingest.ingest.config import SCHEMA_NAME, IngestConfig, validate
+from lanelab.config_checks import ConfigError, register_schema
 
-register_schema()
+register_schema(SCHEMA_NAME, IngestConfig)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="ingest")

@@ -11,11 +11,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any, Optional, Sequence
 
-from hydra import compose, initialize_config_module
-from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, OmegaConf
+from omegaconf import MISSING
 
-from data_ingest.synth.config import ConfigError, FramesConfig, TopicsConfig
+from data_ingest.synth.config import FramesConfig, TopicsConfig
+from lanelab.config_checks import ConfigError, check_choice, check_positive, load_config
 
 SPLIT_BY = ("log", "clip")
 
@@ -61,30 +60,24 @@ def store_options(cfg: IngestConfig) -> dict[str, Any]:
     return {key: asdict(getattr(cfg, key)) for key in ("topics", "frames", "tolerances", "clips", "split")}
 
 
-def _positive(key: str, value: float | None) -> None:
-    if value is not None and not value > 0:
-        raise ConfigError(f"{key}={value!r} must be > 0")
-
-
 def validate(cfg: IngestConfig) -> IngestConfig:
     """Check every option; raise :class:`ConfigError` naming the first bad key."""
     if not cfg.input:
         raise ConfigError("input is empty: give a log, a folder or a glob")
     if not cfg.output:
         raise ConfigError("output is empty: give the clip store directory")
-    _positive("workers", cfg.workers)
+    check_positive("workers", cfg.workers)
     for key in ("label_s", "calibration_s", "tags_s"):
         value = getattr(cfg.tolerances, key)
         if value is not None and value < 0:
             raise ConfigError(f"tolerances.{key}={value!r} must be >= 0")
-    _positive("clips.gap_s", cfg.clips.gap_s)
-    _positive("clips.max_length_s", cfg.clips.max_length_s)
-    _positive("clips.target_fps", cfg.clips.target_fps)
+    check_positive("clips.gap_s", cfg.clips.gap_s)
+    check_positive("clips.max_length_s", cfg.clips.max_length_s)
+    check_positive("clips.target_fps", cfg.clips.target_fps)
     if cfg.clips.target_fps is not None and 1 / cfg.clips.target_fps >= cfg.clips.gap_s:
         raise ConfigError(f"clips.target_fps={cfg.clips.target_fps} keeps frames further apart than "
                           f"clips.gap_s={cfg.clips.gap_s}: every frame would be its own clip")
-    if cfg.split.by not in SPLIT_BY:
-        raise ConfigError(f"split.by={cfg.split.by!r} is not one of {', '.join(SPLIT_BY)}")
+    check_choice("split.by", cfg.split.by, SPLIT_BY)
     ratios = {name: getattr(cfg.split, name) for name in ("train", "val", "test")}
     if any(value < 0 for value in ratios.values()) or abs(sum(ratios.values()) - 1) > 1e-6:
         raise ConfigError(f"split ratios {ratios} must be >= 0 and sum to 1")
@@ -95,14 +88,9 @@ def validate(cfg: IngestConfig) -> IngestConfig:
     return cfg
 
 
-def register_schema() -> None:
-    """Make the schema known to Hydra as ``ingest_schema`` (the first entry of conf/ingest.yaml's defaults)."""
-    ConfigStore.instance().store(name="ingest_schema", node=IngestConfig)
+SCHEMA_NAME = "ingest_schema"  # the first entry of conf/ingest.yaml's defaults
 
 
 def load_ingest_config(overrides: Sequence[str] = ()) -> IngestConfig:
     """Compose ``conf/ingest.yaml`` with Hydra overrides and validate it, as ``lanelab-ingest`` does."""
-    register_schema()
-    with initialize_config_module(config_module="lanelab.conf", version_base="1.3"):
-        cfg = compose(config_name="ingest", overrides=list(overrides))
-    return validate(OmegaConf.to_object(cfg))
+    return load_config("ingest", SCHEMA_NAME, IngestConfig, validate, overrides)

@@ -37,7 +37,7 @@ from data_ingest.ingest.mcap_reader import ReadReport
 from data_ingest.ingest.scan import scan_log
 from data_ingest.ingest.spill import Spill
 from data_ingest.ingest.summary import print_summary
-from data_ingest.synth.config import ConfigError
+from lanelab.config_checks import ConfigError
 from lanelab.data.clip_store import (
     ClipEntry,
     Manifest,

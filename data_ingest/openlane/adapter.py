@@ -37,7 +37,7 @@ import numpy as np
 
 from data_ingest.openlane.annotation import Annotation, read_annotation, timestamp_ns
 from data_ingest.openlane.config import OpenLaneAdapterConfig
-from data_ingest.synth.config import ConfigError
+from lanelab.config_checks import ConfigError
 from lanelab.data.clip_store import (
     ClipEntry,
     FrameRecord,

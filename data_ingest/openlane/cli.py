@@ -15,12 +15,12 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import MissingMandatoryValue
 
-from data_ingest.openlane.config import OpenLaneAdapterConfig, register_schema, validate
-from data_ingest.synth.config import ConfigError
+from data_ingest.openlane.config import SCHEMA_NAME, OpenLaneAdapterConfig, validate
+from lanelab.config_checks import ConfigError, register_schema
 from lanelab.data.clip_store import ManifestError
 from lanelab.metrics.json_files import LaneFileError
 
-register_schema()
+register_schema(SCHEMA_NAME, OpenLaneAdapterConfig)
 
 
 def run(cfg: OpenLaneAdapterConfig) -> bool:

@@ -8,14 +8,11 @@ sense (:func:`validate`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Dict, Optional, Sequence
 
-from hydra import compose, initialize_config_module
-from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, OmegaConf
+from omegaconf import MISSING
 
-from data_ingest.synth.config import ConfigError
+from lanelab.config_checks import ConfigError, check_existing, load_config
 from lanelab.data.clip_store import SPLITS
 
 
@@ -29,20 +26,12 @@ class OpenLaneAdapterConfig:
     scene_tags: Optional[str] = None
 
 
-def _existing(key: str, value: str | None, kind: str) -> None:
-    if value is None:
-        return
-    path = Path(value)
-    if not (path.is_dir() if kind == "folder" else path.is_file()):
-        raise ConfigError(f"{key}={value!r} is not an existing {kind}")
-
-
 def validate(cfg: OpenLaneAdapterConfig) -> OpenLaneAdapterConfig:
     """Check every option; raise :class:`ConfigError` naming the first bad key."""
-    _existing("annotations", cfg.annotations, "folder")
-    _existing("images", cfg.images, "folder")
-    _existing("scenario_lists", cfg.scenario_lists, "folder")
-    _existing("scene_tags", cfg.scene_tags, "file")
+    check_existing("annotations", cfg.annotations, "folder")
+    check_existing("images", cfg.images, "folder")
+    check_existing("scenario_lists", cfg.scenario_lists, "folder")
+    check_existing("scene_tags", cfg.scene_tags, "file")
     if not cfg.splits:
         raise ConfigError("splits is empty: name at least one OpenLane split folder, e.g. splits.validation=val")
     for folder, split in cfg.splits.items():
@@ -51,14 +40,9 @@ def validate(cfg: OpenLaneAdapterConfig) -> OpenLaneAdapterConfig:
     return cfg
 
 
-def register_schema() -> None:
-    """Make the schema known to Hydra as ``openlane_schema`` (the first entry of conf/openlane.yaml's defaults)."""
-    ConfigStore.instance().store(name="openlane_schema", node=OpenLaneAdapterConfig)
+SCHEMA_NAME = "openlane_schema"  # the first entry of conf/openlane.yaml's defaults
 
 
 def load_openlane_config(overrides: Sequence[str] = ()) -> OpenLaneAdapterConfig:
     """Compose ``conf/openlane.yaml`` with Hydra overrides and validate it, as ``lanelab-openlane`` does."""
-    register_schema()
-    with initialize_config_module(config_module="lanelab.conf", version_base="1.3"):
-        cfg = compose(config_name="openlane", overrides=list(overrides))
-    return validate(OmegaConf.to_object(cfg))
+    return load_config("openlane", SCHEMA_NAME, OpenLaneAdapterConfig, validate, overrides)

@@ -14,9 +14,10 @@ import sys
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from data_ingest.synth.config import ConfigError, register_schema, validate
+from data_ingest.synth.config import SCHEMA_NAME, SynthConfig, validate
+from lanelab.config_checks import ConfigError, register_schema
 
-register_schema()
+register_schema(SCHEMA_NAME, SynthConfig)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="synth")

@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Optional, Sequence
 
-from hydra import compose, initialize_config_module
-from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, OmegaConf
+from omegaconf import MISSING
+
+from lanelab.config_checks import ConfigError, check_choice, check_positive, load_config
 
 ENCODINGS = ("ros2", "foxglove")
 FOXGLOVE_SCHEMAS = ("protobuf", "json")
@@ -23,10 +23,6 @@ ENVIRONMENTS = ("highway", "urban", "rural")
 DAYTIMES = ("day", "night")
 WEATHERS = ("sun", "rain", "fog", "snow")
 MAX_LANES = 6
-
-
-class ConfigError(ValueError):
-    """An option of ``lanelab-synth`` has a value that cannot work; names the key."""
 
 
 @dataclass
@@ -96,25 +92,18 @@ class SynthConfig:
 
 
 def _choice(key: str, value: str, choices: tuple[str, ...], allow_random: bool = False) -> None:
-    allowed = choices + (("random",) if allow_random else ())
-    if value not in allowed:
-        raise ConfigError(f"{key}={value!r} is not one of {', '.join(allowed)}")
-
-
-def _positive(key: str, value: float) -> None:
-    if not value > 0:
-        raise ConfigError(f"{key}={value!r} must be > 0")
+    check_choice(key, value, choices + (("random",) if allow_random else ()))
 
 
 def validate(cfg: SynthConfig) -> SynthConfig:
     """Check every option; raise :class:`ConfigError` naming the first bad key."""
-    _positive("num_logs", cfg.num_logs)
-    _positive("duration_s", cfg.duration_s)
-    _positive("fps", cfg.fps)
-    _positive("tf_rate_hz", cfg.tf_rate_hz)
-    _positive("label_every", cfg.label_every)
-    _positive("chunk_size", cfg.chunk_size)
-    _positive("workers", cfg.workers)
+    check_positive("num_logs", cfg.num_logs)
+    check_positive("duration_s", cfg.duration_s)
+    check_positive("fps", cfg.fps)
+    check_positive("tf_rate_hz", cfg.tf_rate_hz)
+    check_positive("label_every", cfg.label_every)
+    check_positive("chunk_size", cfg.chunk_size)
+    check_positive("workers", cfg.workers)
     if not 1 <= cfg.jpeg_quality <= 100:
         raise ConfigError(f"jpeg_quality={cfg.jpeg_quality} must be in 1..100")
     _choice("encoding", cfg.encoding, ENCODINGS)
@@ -125,7 +114,7 @@ def validate(cfg: SynthConfig) -> SynthConfig:
 
     cam = cfg.camera
     for key in ("width", "height", "hfov_deg", "mount_height_m"):
-        _positive(f"camera.{key}", getattr(cam, key))
+        check_positive(f"camera.{key}", getattr(cam, key))
     if cam.width < 16 or cam.height < 16:
         raise ConfigError(f"camera resolution {cam.height}x{cam.width} is too small (at least 16x16)")
     if cam.hfov_deg >= 170:
@@ -145,23 +134,15 @@ def validate(cfg: SynthConfig) -> SynthConfig:
         raise ConfigError(f"world.min_curve_radius_m={world.min_curve_radius_m} must be >= 50")
     if world.traffic_density < 0:
         raise ConfigError(f"world.traffic_density={world.traffic_density} must be >= 0")
-    _positive("world.max_range_m", world.max_range_m)
+    check_positive("world.max_range_m", world.max_range_m)
     if world.ego_speed_mps is not None and not 0 < world.ego_speed_mps <= 60:
         raise ConfigError(f"world.ego_speed_mps={world.ego_speed_mps} must be in (0, 60] (or null for the environment's)")
     return cfg
 
 
-def register_schema() -> None:
-    """Make the schema known to Hydra as ``synth_schema`` (the first entry of conf/synth.yaml's defaults)."""
-    ConfigStore.instance().store(name="synth_schema", node=SynthConfig)
+SCHEMA_NAME = "synth_schema"  # the first entry of conf/synth.yaml's defaults
 
 
 def load_synth_config(overrides: Sequence[str] = ()) -> SynthConfig:
-    """Compose ``conf/synth.yaml`` with Hydra overrides and validate it, as ``lanelab-synth`` does.
-
-    For scripts, benchmarks and tests that build drives without the command line.
-    """
-    register_schema()
-    with initialize_config_module(config_module="lanelab.conf", version_base="1.3"):
-        cfg = compose(config_name="synth", overrides=list(overrides))
-    return validate(OmegaConf.to_object(cfg))
+    """Compose ``conf/synth.yaml`` with Hydra overrides and validate it, as ``lanelab-synth`` does."""
+    return load_config("synth", SCHEMA_NAME, SynthConfig, validate, overrides)

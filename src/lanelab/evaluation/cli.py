@@ -28,13 +28,14 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import MissingMandatoryValue
 
-from lanelab.evaluation.config import ConfigError, EvalConfig, register_schema, validate
+from lanelab.config_checks import ConfigError, register_schema
+from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.metrics.json_files import LaneFileError
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
 
 PICTURES_PNG = "pictures.png"
 
-register_schema()
+register_schema(SCHEMA_NAME, EvalConfig)
 
 
 def evaluate_prediction_files(cfg: EvalConfig, config: OpenLaneConfig) -> list[tuple[str, FrameResult]]:
@@ -51,7 +52,12 @@ def run(cfg: EvalConfig) -> list[Path]:
     Raises LaneFileError (naming the file) for a malformed or missing input.
     """
     # Heavy imports (torch, via the pictures) only once the options are good.
-    from lanelab.evaluation.pictures import draw_pictures, pick_frames, read_openlane_frame, write_png
+    from lanelab.evaluation.pictures import (
+        draw_pictures,
+        pick_frames,
+        read_openlane_frame,
+        write_png,
+    )
     from lanelab.evaluation.report import build_report, to_text, write_report
     from lanelab.evaluation.scenario_lists import read_scenario_lists, scenarios_of
 

@@ -8,18 +8,13 @@ sense (:func:`validate`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Optional, Sequence
 
-from hydra import compose, initialize_config_module
-from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, OmegaConf
+from omegaconf import MISSING
+
+from lanelab.config_checks import ConfigError, check_existing, load_config
 
 MIN_PICTURE_HEIGHT = 64  # pixels: below this the lanes and titles cannot be told apart
-
-
-class ConfigError(ValueError):
-    """An option of ``lanelab-eval`` has a value that cannot work; names the key."""
 
 
 @dataclass
@@ -40,21 +35,13 @@ class EvalConfig:
     pictures: PicturesConfig = field(default_factory=PicturesConfig)
 
 
-def _existing(key: str, value: str | None, kind: str) -> None:
-    if value is None:
-        return
-    path = Path(value)
-    if not (path.is_dir() if kind == "folder" else path.is_file()):
-        raise ConfigError(f"{key}={value!r} is not an existing {kind}")
-
-
 def validate(cfg: EvalConfig) -> EvalConfig:
     """Check every option; raise :class:`ConfigError` naming the first bad key."""
-    _existing("gt", cfg.gt, "folder")
-    _existing("pred", cfg.pred, "folder")
-    _existing("test_list", cfg.test_list, "file")
-    _existing("scenario_lists", cfg.scenario_lists, "folder")
-    _existing("images", cfg.images, "folder")
+    check_existing("gt", cfg.gt, "folder")
+    check_existing("pred", cfg.pred, "folder")
+    check_existing("test_list", cfg.test_list, "file")
+    check_existing("scenario_lists", cfg.scenario_lists, "folder")
+    check_existing("images", cfg.images, "folder")
     if cfg.pictures.num_frames < 0:
         raise ConfigError(f"pictures.num_frames={cfg.pictures.num_frames} must be >= 0")
     if cfg.pictures.height < MIN_PICTURE_HEIGHT:
@@ -62,17 +49,9 @@ def validate(cfg: EvalConfig) -> EvalConfig:
     return cfg
 
 
-def register_schema() -> None:
-    """Make the schema known to Hydra as ``eval_schema`` (the first entry of conf/eval.yaml's defaults)."""
-    ConfigStore.instance().store(name="eval_schema", node=EvalConfig)
+SCHEMA_NAME = "eval_schema"  # the first entry of conf/eval.yaml's defaults
 
 
 def load_eval_config(overrides: Sequence[str] = ()) -> EvalConfig:
-    """Compose ``conf/eval.yaml`` with Hydra overrides and validate it, as ``lanelab-eval`` does.
-
-    For scripts and tests that evaluate without the command line.
-    """
-    register_schema()
-    with initialize_config_module(config_module="lanelab.conf", version_base="1.3"):
-        cfg = compose(config_name="eval", overrides=list(overrides))
-    return validate(OmegaConf.to_object(cfg))
+    """Compose ``conf/eval.yaml`` with Hydra overrides and validate it, as ``lanelab-eval`` does."""
+    return load_config("eval", SCHEMA_NAME, EvalConfig, validate, overrides)
