@@ -26,7 +26,7 @@ by score, with DETR's softmax score).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor, nn
@@ -134,15 +134,16 @@ class SparseLaneSTP(nn.Module):
         return self.decoder.head
 
     # ----------------------------------------------------------------- windowed
-    def forward(self, batch: Mapping[str, Tensor], all_frames: bool = False) -> dict[str, Tensor]:
+    def forward(self, batch: Mapping[str, Tensor], all_frames: bool = False) -> dict[str, Any]:
         """Windowed forward over the F frames of a batch.
 
         batch: images (B, F, 3, H, W), K (B, F, 3, 3), T_lane_cam (B, F, 4, 4),
         T_world_lane (B, F, 4, 4), valid (B, F) bool (False: padding before a clip start);
         K in pixels of the images as given (after any resizing).
         Returns the current (last) frame's outputs (see ``step``). With all_frames, every
-        output gets a frame axis after the batch axis (B, F, ...) and every frame is
-        differentiable; otherwise the earlier frames only fill the memory, without gradient.
+        tensor output gets a frame axis after the batch axis (B, F, ...), "memory" is left out,
+        and every frame is differentiable; otherwise the earlier frames only fill the memory,
+        without gradient.
         """
         images, valid = batch["images"], batch["valid"]
         B, F = images.shape[:2]
@@ -168,7 +169,8 @@ class SparseLaneSTP(nn.Module):
                 )
         if not all_frames:
             return outputs[-1]
-        return {key: torch.stack([out[key] for out in outputs], dim=_frame_axis(key)) for key in outputs[-1]}
+        tensors = [key for key in outputs[-1] if key != "memory"]
+        return {key: torch.stack([out[key] for out in outputs], dim=_frame_axis(key)) for key in tensors}
 
     # ---------------------------------------------------------------- streaming
     def reset(self, mask: Tensor) -> None:
@@ -176,7 +178,7 @@ class SparseLaneSTP(nn.Module):
         starts). Changing the stream's batch size needs a reset of every element."""
         self._stream.reset(mask)
 
-    def step(self, frame: Mapping[str, Tensor]) -> dict[str, Tensor]:
+    def step(self, frame: Mapping[str, Tensor]) -> dict[str, Any]:
         """One streaming step.
 
         frame: images (B, 3, H, W), K (B, 3, 3), T_lane_cam (B, 4, 4), T_world_lane (B, 4, 4)
@@ -187,6 +189,8 @@ class SparseLaneSTP(nn.Module):
             logits      (L, B, N, K + 1) class logits of every layer, background last
             init_points (B, N, M, 4)     the query generator's initial control points 0P
             masks       (B, N, H/8, W/8) auxiliary instance-mask logits (stride of FPN level 0)
+            memory      MemoryState | None, the propagated memory this frame attended to (what
+                        the temporal regulariser, eq. 12-13, compares with); None when empty
         """
         if "reset" in frame:
             self.reset(frame["reset"])
@@ -220,10 +224,11 @@ class SparseLaneSTP(nn.Module):
         T_world_lane: Tensor,
         image_size: tuple[int, int],
         memory: MemoryQueue,
-    ) -> dict[str, Tensor]:
+    ) -> dict[str, Any]:
         """Decode one frame against the memory, then push its most confident lines."""
+        state = memory.read(T_world_lane)
         points, logits, queries = self.decoder(
-            encoded.queries, encoded.logits, memory.read(T_world_lane), encoded.features, K, T_lane_cam, image_size
+            encoded.queries, encoded.logits, state, encoded.features, K, T_lane_cam, image_size
         )
         # Confidence = the best foreground class probability (DETR's score). The queue detaches.
         memory.push(queries, points[-1], logits[-1].softmax(-1)[..., :-1].amax(-1), T_world_lane)
@@ -232,6 +237,7 @@ class SparseLaneSTP(nn.Module):
             "logits": logits,
             "init_points": self.head.control_points(encoded.logits),
             "masks": encoded.masks,
+            "memory": state,
         }
 
 

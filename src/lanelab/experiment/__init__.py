@@ -1,0 +1,10 @@
+"""Experiments: the ``lanelab-train`` entry point over the ``conf/`` tree, its config checks,
+the evaluation report after training, and ``lanelab-sweep-report`` over multiruns.
+
+- ``config``: the root schema and the start-up checks; ``targets``: ``_target_`` nodes
+  checked against the signatures of what they build;
+- ``train``: ``lanelab-train``; ``evaluate``: predictions, report and pictures of a split;
+- ``sweep_report``: ``lanelab-sweep-report``.
+"""
+
+METRICS_JSON = "metrics.json"  # every run folder's final metrics, written by train, read by sweep_report

@@ -1,0 +1,102 @@
+"""The evaluation report of a trained model on a clip-store split: prediction files, the
+papers' tables (overall and per scenario tag) and pictures.
+
+The model predicts ``data.splits.predict`` (``Trainer.predict`` with
+:class:`~lanelab.lightning.OpenLaneWriter`, which also writes the ground truth and the test
+list, so the numbers come from the same files any OpenLane tool reads, and it works under
+DDP). Then, on rank zero, the pieces of ``lanelab-eval`` score the files
+(:func:`~lanelab.metrics.openlane.evaluate_frames` with the model's metric settings), group
+the frames by the store's scenario tags (weather, occlusion, curvature, ...;
+:func:`~lanelab.metrics.scenarios.tag_scenarios`), write ``report.md`` / ``report.json`` and
+draw ``pictures.png`` on the store's camera images. Layout of ``out``::
+
+    predictions/  ground_truth/  test_list.txt  report.md  report.json  pictures.png
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path, PurePosixPath
+
+import lightning.pytorch as pl
+import numpy as np
+import pyarrow.parquet as pq
+from omegaconf import DictConfig
+
+from lanelab.data.clip_store import ClipStore
+from lanelab.data.datamodule import ClipDataModule
+from lanelab.data.image_codec import decode_image
+from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
+from lanelab.evaluation.report import Report, build_report, to_text, write_report
+from lanelab.lightning import OpenLaneWriter
+from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
+from lanelab.metrics.openlane import evaluate_frames
+from lanelab.metrics.scenarios import TABLE7_GROUPS, tag_scenarios
+
+PICTURES_PNG = "pictures.png"
+# Table 7's scenario groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
+SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}
+
+
+def evaluate(
+    trainer: pl.Trainer,
+    module: pl.LightningModule,
+    datamodule: ClipDataModule,
+    ckpt_path: str | None,
+    options: DictConfig,
+) -> Report | None:
+    """Predict, score, write the report and pictures under options.out (see the module).
+
+    ckpt_path: the weights (None: those in memory). options: ``out``, ``num_pictures``,
+    ``picture_height`` (conf/train.yaml ``evaluation``). Returns the report on rank zero.
+    """
+    out = Path(options.out)
+    writer = OpenLaneWriter(out, write_ground_truth=True)
+    trainer.callbacks.append(writer)
+    try:
+        trainer.predict(module, datamodule=datamodule, ckpt_path=ckpt_path, return_predictions=False)
+    finally:
+        trainer.callbacks.remove(writer)
+    if not trainer.is_global_zero:
+        return None
+
+    results = evaluate_frames(out / GROUND_TRUTH, out / PREDICTIONS, out / TEST_LIST, module.metric_config)
+    store = ClipStore(datamodule.store)
+    tags = frame_tags(store, {_clip_id(frame) for frame, _ in results})
+    scenarios = tag_scenarios({frame: tags.get(frame, {}) for frame, _ in results}, SCENARIO_GROUPS)
+    report = build_report(results, module.metric_config, scenarios, {"store": str(datamodule.store), "out": str(out)})
+    print(to_text(report))
+    written = write_report(report, out)
+
+    chosen = [results[i][0] for i in pick_frames(len(results), options.num_pictures)]
+    if chosen:
+        frames = [_picture_frame(store, out, frame) for frame in chosen]
+        y_range = (0.0, float(module.metric_config.y_range[1]))
+        written.append(write_png(out / PICTURES_PNG, draw_pictures(frames, options.picture_height, y_range)))
+    print("wrote " + ", ".join(str(path) for path in written))
+    return report
+
+
+def frame_tags(store: ClipStore, clip_ids: set[str]) -> dict[str, dict[str, str]]:
+    """Frame id (as the test list names it, "<clip_id>/<timestamp_ns>.json") -> its scenario
+    tags, read from the clip files' ``tags`` column alone."""
+    tags = {}
+    for clip_id in sorted(clip_ids):
+        table = pq.read_table(store.clip_path(clip_id), columns=["timestamp_ns", "tags"]).to_pydict()
+        for timestamp, frame_tags in zip(table["timestamp_ns"], table["tags"]):
+            tags[f"{clip_id}/{timestamp}.json"] = dict(frame_tags or [])
+    return tags
+
+
+def _clip_id(frame: str) -> str:
+    return PurePosixPath(frame).parent.as_posix()
+
+
+def _picture_frame(store: ClipStore, out: Path, frame: str) -> PictureFrame:
+    """The evaluated frame's lanes from the files, drawn on the store's camera image (with its
+    own K and T_lane_cam: the files hold the model input's)."""
+    picture = read_openlane_frame(out / GROUND_TRUTH, out / PREDICTIONS, frame, None)
+    timestamp = int(PurePosixPath(frame).stem)
+    record = next(r for r in store.read_frames(_clip_id(frame)) if r.timestamp_ns == timestamp)
+    image = np.ascontiguousarray(decode_image(record)[..., ::-1])  # RGB -> BGR
+    return dataclasses.replace(picture, image=image, K=record.K, T_lane_cam=record.T_lane_cam)

@@ -1,0 +1,65 @@
+"""Pictures of predictions for the training logs: the camera image with the predicted lanes,
+beside top views of the ground truth and of the predictions (lanelab.viz draws all three).
+
+They go to the logger where it takes images (W&B's ``log_image``), else into PNG files under
+the trainer's log directory (CSV logger, no logger).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import lightning.pytorch as pl
+import numpy as np
+from torch import Tensor
+
+from lanelab.atomic_file import atomic_output
+from lanelab.lightning.predictions import Lane
+from lanelab.viz import draw_lanes_on_image, draw_top_view
+
+HEIGHT = 360  # pixels of every picture; small model inputs are enlarged to it
+
+
+def prediction_picture(
+    image: Tensor,
+    K: Tensor,
+    T_lane_cam: Tensor,
+    predictions: Sequence[Lane],
+    ground_truth: Sequence[Lane],
+    x_range: tuple[float, float],
+    y_range: tuple[float, float],
+) -> np.ndarray:
+    """One frame's picture (HEIGHT, W, 3) RGB uint8.
+
+    image (3, H, W) as the model saw it (normalised: shown stretched to its own min..max);
+    K (3, 3) of that image; T_lane_cam (4, 4); lanes in the lane frame; x_range, y_range:
+    the lane-frame region of the top views (metres).
+    """
+    rgb = image.detach().float().cpu().permute(1, 2, 0).numpy()
+    rgb = (255 * (rgb - rgb.min()) / max(float(rgb.max() - rgb.min()), 1e-6)).astype(np.uint8)
+    scale = HEIGHT / rgb.shape[0]
+    bgr = cv2.resize(rgb[..., ::-1], (round(rgb.shape[1] * scale), HEIGHT), interpolation=cv2.INTER_LINEAR)
+    K_scaled = K.detach().double().cpu().numpy() * np.array([[scale], [scale], [1.0]])
+    camera = draw_lanes_on_image(bgr, predictions, K_scaled, T_lane_cam.detach().double().cpu().numpy())
+    size = (HEIGHT, HEIGHT // 2)
+    top_gt = draw_top_view(ground_truth, size, x_range, y_range, title="ground truth")
+    top_pred = draw_top_view(predictions, size, x_range, y_range, title="prediction")
+    return np.concatenate([camera, top_gt, top_pred], axis=1)[..., ::-1].copy()
+
+
+def log_pictures(trainer: pl.Trainer, key: str, pictures: Sequence[np.ndarray]) -> None:
+    """Log RGB pictures under key at the current step, or write them as
+    ``<log_dir>/pictures/<key>_step<step>_<i>.png``."""
+    logger = trainer.logger
+    if logger is not None and hasattr(logger, "log_image"):
+        logger.log_image(key=key, images=list(pictures), step=trainer.global_step)
+        return
+    directory = Path(trainer.log_dir or trainer.default_root_dir) / "pictures"
+    directory.mkdir(parents=True, exist_ok=True)
+    for i, picture in enumerate(pictures):
+        ok, png = cv2.imencode(".png", picture[..., ::-1])
+        assert ok, "PNG encoding of a uint8 picture cannot fail"
+        with atomic_output(directory / f"{key.replace('/', '_')}_step{trainer.global_step:07d}_{i}.png") as tmp:
+            tmp.write_bytes(png.tobytes())

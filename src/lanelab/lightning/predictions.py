@@ -1,0 +1,132 @@
+"""Dense lanes: what the model's outputs and the ground truth of a batch become for metrics,
+prediction files and pictures.
+
+Both are :class:`DenseLanes`, N lane slots of B frames sampled at the same S longitudinal
+positions (the batch's ``gt_y`` grid, so that predictions and ground truth are compared at the
+same places). A proposal is a lane where its most likely class is not background (LATR's rule);
+its category is the most likely lane class and its score that class's probability.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from lanelab.metrics.openlane_metric import LaneBatch
+from lanelab.models.heads import BACKGROUND_INDEX, index_to_category
+from lanelab.models.sparselanestp import SparseLaneSTP
+
+
+@dataclass(frozen=True)
+class Lane:
+    """One 3D lane in the lane frame (a :class:`lanelab.viz.LaneLike`): points (P, 3) x, y, z
+    in metres, visibility (P,) in [0, 1], OpenLane category id, score (1 for ground truth)."""
+
+    points: np.ndarray
+    visibility: np.ndarray
+    category: int
+    score: float
+
+
+@dataclass
+class DenseLanes:
+    """Lanes of B frames, N slots each, sampled at S longitudinal positions.
+
+    points (B, N, S, 3) lane frame, metres; visibility (B, N, S) in [0, 1]; category (B, N)
+    OpenLane ids; score (B, N); valid (B, N) bool, the slots that hold a lane; threshold: points
+    of visibility at or below it are not part of their lane (0 for ground truth, the metric's
+    visibility_threshold for predictions).
+    """
+
+    points: Tensor
+    visibility: Tensor
+    category: Tensor
+    score: Tensor
+    valid: Tensor
+    threshold: float
+
+    def __getitem__(self, frames: Tensor | slice) -> DenseLanes:
+        """The frames selected by a (B,) bool mask, indices or a slice."""
+        return DenseLanes(
+            self.points[frames], self.visibility[frames], self.category[frames], self.score[frames],
+            self.valid[frames], self.threshold,
+        )  # fmt: skip
+
+    def __len__(self) -> int:
+        return self.points.shape[0]
+
+    def metric_input(self) -> LaneBatch:
+        """The OpenLaneMetric's input; the metric drops the points at or below the threshold."""
+        return LaneBatch(self.points, self.visibility, self.category, self.valid)
+
+    def lanes(self, frame: int, visible_only: bool) -> list[Lane]:
+        """The lanes of one frame, with every sample or only those above the threshold (as
+        prediction files hold them); lanes left with fewer than two points are dropped."""
+        lanes = []
+        for i in self.valid[frame].nonzero()[:, 0].tolist():
+            points = self.points[frame, i].detach().cpu().double().numpy()
+            visibility = self.visibility[frame, i].detach().cpu().double().numpy()
+            keep = visibility > self.threshold if visible_only else np.ones(len(points), bool)
+            if keep.sum() >= 2:
+                category, score = int(self.category[frame, i]), float(self.score[frame, i])
+                lanes.append(Lane(points[keep], visibility[keep], category, score))
+        return lanes
+
+
+def frame_path(clip_id: str, timestamp_ns: int) -> str:
+    """A frame's OpenLane ``file_path``: an image path, whose JSON files end in .json instead."""
+    return f"{clip_id}/{timestamp_ns}.jpg"
+
+
+def predicted_lanes(net: SparseLaneSTP, outputs: Mapping[str, Any], y: Tensor, threshold: float) -> DenseLanes:
+    """The last decoder layer's lanes at longitudinal positions y (S,), from the outputs of
+    ``net.forward`` / ``net.step`` (points (L, B, N, M, 4), logits (L, B, N, K + 1))."""
+    dense = net.decode(outputs, y)  # (B, N, S, 4)
+    probability = outputs["logits"][-1].float().softmax(-1)
+    score, index = probability[..., :BACKGROUND_INDEX].max(-1)
+    return DenseLanes(
+        points=dense[..., :3],
+        visibility=dense[..., 3],
+        category=index_to_category(index),
+        score=score,
+        valid=probability.argmax(-1) != BACKGROUND_INDEX,
+        threshold=threshold,
+    )
+
+
+def ground_truth_lanes(batch: Mapping[str, Tensor]) -> DenseLanes:
+    """The current frame's ground truth of a collated batch: gt_y (B, S), gt_x / gt_z / gt_vis
+    (B, G, S), gt_category (B, G), gt_mask (B, G)."""
+    x, z = batch["gt_x"], batch["gt_z"]
+    y = batch["gt_y"][:, None, :].expand_as(x)
+    return DenseLanes(
+        points=torch.stack([x, y, z], dim=-1),
+        visibility=batch["gt_vis"],
+        category=batch["gt_category"],
+        score=batch["gt_mask"].to(x.dtype),
+        valid=batch["gt_mask"],
+        threshold=0.0,
+    )
+
+
+@dataclass
+class PredictionBatch:
+    """What ``predict_step`` returns for the B' real (not padding) frames of a batch (Lightning
+    moves it to the CPU to collect it).
+
+    file_paths: OpenLane ``file_path`` of each frame; labeled (B',) bool; K (B', 3, 3) and
+    T_lane_cam (B', 4, 4) of the model input; predictions and ground_truth: every lane slot,
+    see :class:`DenseLanes` (ground truth empty where not labeled).
+    """
+
+    file_paths: list[str]
+    labeled: Tensor
+    K: Tensor
+    T_lane_cam: Tensor
+    predictions: DenseLanes
+    ground_truth: DenseLanes

@@ -1,0 +1,29 @@
+"""An interrupted run resumes from its last checkpoint and continues the step count."""
+
+import csv
+from pathlib import Path
+
+import torch
+from tiny_store import tiny_overrides
+
+from lanelab.experiment.config import load_train_config
+from lanelab.experiment.train import train
+
+
+def logged_steps(metrics_csv: Path) -> list[int]:
+    with metrics_csv.open() as f:
+        return [int(row["step"]) for row in csv.DictReader(f) if row.get("train/loss")]
+
+
+def test_resume_from_last_continues_the_step_count(tiny_store: Path, tmp_path: Path) -> None:
+    # 6 training steps per epoch (2 streams over 12 frames): the first run stops mid-epoch, as if killed.
+    common = ["logger=csv", "sampler=stream", "data.num_frames=1", "trainer.max_epochs=10", "trainer.limit_val_batches=1"]
+    train(load_train_config(tiny_overrides(tiny_store, tmp_path, *common, "logger.csv.name=first", "trainer.max_steps=4")))
+    last = tmp_path / "checkpoints" / "last.ckpt"
+    assert torch.load(last, weights_only=False)["global_step"] == 4
+
+    overrides = [*common, "logger.csv.name=second", "trainer.max_steps=6", "ckpt_path=last"]
+    train(load_train_config(tiny_overrides(tiny_store, tmp_path, *overrides)))
+    assert logged_steps(tmp_path / "first" / "metrics.csv") == [0, 1, 2, 3]
+    assert logged_steps(tmp_path / "second" / "metrics.csv") == [4, 5]
+    assert torch.load(last, weights_only=False)["global_step"] == 6
