@@ -18,9 +18,11 @@ Three implementations (``impl``) of the same layer:
   on every line, W = 2·reach + 1 with reach the largest |n - m| among the actual neighbours:
   exact for any geometry, narrow where lanes run alike (W = 3 for PNA on parallel lanes, at
   most M). The scores are batched matmuls per query row; the masks keep the exact keys.
-  SLA, PNA and TCA logits are concatenated and share one masked softmax. No (N·M)^2 matrix
-  and no per-query copy of key vectors: gathering the ~108 keys of every query, as
-  (B, N·M, 108, C), moves more memory than the whole dense attention matrix at C = 256.
+  The SLA block and the band's W point slots of PNA and TCA are chunks of ONE masked softmax,
+  computed chunk by chunk with a running maximum (as flash attention does), so only one
+  chunk's logits exist at a time. No (N·M)^2 matrix and no per-query copy of key vectors:
+  gathering the ~108 keys of every query, as (B, N·M, 108, C), moves more memory than the
+  whole dense attention matrix at C = 256.
 - "dense": the reference; the full boolean mask over [N·M queries ‖ K memory tokens] and
   masked scaled-dot-product attention (torch's fused kernel where the device has one).
 - "global": plain self-attention over all N·M queries, no memory, no masks (LATR's decoder;
@@ -30,7 +32,7 @@ A query without any active key (every key padded) gets a zero attention output.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import torch
 import torch.nn.functional as F
@@ -89,8 +91,10 @@ class SpatioTemporalAttention(nn.Module):
         (None: zero); line_mask (B, N) bool, False for padded lines.
         Returns the attention output (B, N, M, C) (before residual and norm)."""
         B, N, M, C = queries.shape
-        q = self._split_heads(self.q_proj(queries + query_pos))  # (B, H, N, M, d)
-        k = self._split_heads(self.k_proj(queries + query_pos))
+        positioned = queries + query_pos
+        q = self._split_heads(self.q_proj(positioned))  # (B, H, N, M, d)
+        k = self._split_heads(self.k_proj(positioned))
+        del positioned
         v = self._split_heads(self.v_proj(queries))
         if self.impl == "global":
             out = self._global(q, k, v, line_mask)
@@ -121,39 +125,26 @@ class SpatioTemporalAttention(nn.Module):
     ) -> Tensor:
         """q, k, v (B, H, N, M, d); k_mem, v_mem (B, K, C) -> (B, H, N, M, d).
 
-        Works on queries ordered by point row, (B, H, M, N, d): the banded parts score all N
-        queries of a row against the same window of keys, one matmul per row."""
+        Works on queries ordered by point row, (B, H, M, N, d): a chunk scores all N queries of
+        a row against the same keys, one batched matmul per chunk, and the chunks share one
+        softmax (:class:`_ChunkedSoftmax`)."""
         B, H, N, M, d = q.shape
         rows = (q * d**-0.5).transpose(2, 3).contiguous()  # softmax scale applied to the queries
-        # Each relation gives logits (B, H, M, N, a), their mask (B, M, N, a) and the map from
-        # its attention weights to the weighted sum of its values (B, H, M, N, d).
-        parts = []
+        softmax = _ChunkedSoftmax(self.dropout if self.training else 0.0)
         if nb.use_sla:  # block-diagonal: the M x M attention of every line
-            sla_logits = (rows.transpose(2, 3) @ k.transpose(-1, -2)).transpose(2, 3)
-            sla_mask = nb.line_valid[:, None, :, None].expand(B, M, N, M)
-            parts.append((sla_logits, sla_mask, lambda w: (w.transpose(2, 3) @ v).transpose(2, 3)))
+            logits = (rows.transpose(2, 3) @ k.transpose(-1, -2)).transpose(2, 3)  # (B, H, M, N, M)
+            mask = nb.line_valid[:, None, :, None].expand(B, M, N, M)
+            softmax.add(logits, mask, lambda w: (w.transpose(2, 3) @ v).transpose(2, 3))
         if nb.pna_index is not None:  # neighbours on the current lines
             lines = torch.arange(N, device=q.device).repeat_interleave(nb.pna_index.shape[-1])
             index, valid = nb.pna_index.transpose(1, 2).flatten(-2), nb.pna_valid.transpose(1, 2).flatten(-2)
-            parts.append(_band_attention(rows, k, v, lines, index, valid))
+            softmax.add_all(_band_chunks(rows, k, v, lines, index, valid))
         if nb.tca_index is not None:  # nearest memory points, on the stored lines of M points
             k_lines = self._split_heads(k_mem).unflatten(2, (-1, M))  # (B, H, L_mem, M, d)
             v_lines = self._split_heads(v_mem).unflatten(2, (-1, M))
             index, valid = nb.tca_index.transpose(1, 2), nb.tca_valid.transpose(1, 2)
-            parts.append(_band_attention(rows, k_lines, v_lines, index // M, index % M, valid))
-
-        sizes = [logits.shape[-1] for logits, _, _ in parts]
-        logits = torch.cat([part[0] for part in parts], -1)  # (B, H, M, N, A)
-        mask = torch.cat([part[1] for part in parts], -1)  # (B, M, N, A)
-        weighted_sums = [part[2] for part in parts]
-        del parts  # let the per-part logits go before the softmax allocates its own
-        # Like _masked_sdpa: rows without any key attend to everything, then output zero.
-        has_key = mask.any(-1, keepdim=True)
-        weights = logits.masked_fill_(~(mask | ~has_key)[:, None], -torch.inf).softmax(-1)
-        del logits  # not needed by the weighted sums
-        weights = F.dropout(weights, self.dropout, self.training).split(sizes, -1)
-        out = sum(weighted_sum(part) for weighted_sum, part in zip(weighted_sums, weights))
-        return (out * has_key[:, None]).transpose(2, 3)
+            softmax.add_all(_band_chunks(rows, k_lines, v_lines, index // M, index % M, valid))
+        return softmax.result().transpose(2, 3)
 
     def _dense(
         self, q: Tensor, k: Tensor, v: Tensor, k_mem: Tensor | None, v_mem: Tensor | None, nb: Neighbours
@@ -197,19 +188,59 @@ class SpatioTemporalAttention(nn.Module):
         return x.unflatten(-1, (self.num_heads, -1)).movedim(-2, 1)
 
 
-def _band_attention(
+class _ChunkedSoftmax:
+    """One softmax attention over keys that arrive in chunks (the running-maximum form of
+    flash attention): only one chunk's logits exist at a time, and no key vector is copied
+    more than once. Masked keys get the dtype's lowest value, so a query without any active
+    key attends to every key and then outputs zero, like _masked_sdpa; no inf - inf arises."""
+
+    def __init__(self, dropout: float) -> None:
+        self.dropout = dropout
+        self.max: Tensor | None = None  # (B, H, M, N, 1) running maximum (no gradient: softmax is shift-invariant)
+        self.total: Tensor | None = None  # (B, H, M, N, 1) running sum of exp(logit - max)
+        self.out: Tensor | None = None  # (B, H, M, N, d) running weighted sum of the values
+        self.has_key: Tensor | None = None  # (B, M, N, 1)
+
+    def add(self, logits: Tensor, mask: Tensor, weighted_sum: Callable[[Tensor], Tensor]) -> None:
+        """logits (B, H, M, N, a), a fresh tensor (filled in place); mask (B, M, N, a);
+        weighted_sum maps weights (B, H, M, N, a) to the sum of their values (B, H, M, N, d)."""
+        logits = logits.masked_fill_(~mask[:, None], torch.finfo(logits.dtype).min)
+        new_max = logits.detach().amax(-1, keepdim=True)
+        if self.max is not None:
+            new_max = torch.maximum(self.max, new_max)
+        weights = logits.sub_(new_max).exp_()
+        total = weights.sum(-1, keepdim=True)
+        out = weighted_sum(F.dropout(weights, self.dropout, self.dropout > 0))
+        has_key = mask.any(-1, keepdim=True)
+        if self.max is not None:  # rescale what came before to the new maximum (in place: no copies)
+            rescale = (self.max - new_max).exp_()
+            total, out, has_key = total.add_(self.total.mul_(rescale)), out.add_(self.out.mul_(rescale)), has_key | self.has_key
+        self.max, self.total, self.out, self.has_key = new_max, total, out, has_key
+
+    def add_all(self, chunks: Iterator[tuple[Tensor, Tensor, Callable[[Tensor], Tensor]]]) -> None:
+        for chunk in chunks:
+            self.add(*chunk)
+            del chunk  # before the next chunk is computed: one chunk alive at a time
+
+    def result(self) -> Tensor:
+        """(B, H, M, N, d) the attention output; zero for queries without a key."""
+        return self.out / self.total * self.has_key[:, None]
+
+
+def _band_chunks(
     rows: Tensor, keys: Tensor, values: Tensor, lines: Tensor, points: Tensor, valid: Tensor
-) -> tuple[Tensor, Tensor, Callable[[Tensor], Tensor]]:
-    """Attention part over keys that lie on lines of M points, near the query's point index.
+) -> Iterator[tuple[Tensor, Tensor, Callable[[Tensor], Tensor]]]:
+    """Attention chunks over keys that lie on lines of M points, near the query's point index.
 
     rows (B, H, M, N, d): the queries, row m holding point m of every line; keys, values
     (B, H, L, M, d): L lines of M points; lines, points, valid (B, M, N, k) (lines may
     broadcast): line and point index of the keys of query (line i, point m).
-    With reach = max |point - m| over the valid keys, row m scores the W = min(2·reach + 1, M)
+    With reach = max |point - m| over the valid keys, row m looks at the W = min(2·reach + 1, M)
     points [start(m), start(m) + W) of every line, start(m) = clamp(m - reach, 0, M - W): a
     window that holds [m - reach, m + reach] ∩ [0, M), so the band is exact for any geometry,
-    and narrow (W = 3 for parallel lanes) where lines run alike.
-    Returns logits (B, H, M, N, W·L), mask (B, M, N, W·L) and the weights -> output map.
+    and narrow (W = 3 for parallel lanes) where lines run alike. One chunk per window slot o:
+    every row scores point start(m) + o of all L lines.
+    Yields logits (B, H, M, N, L), mask (B, M, N, L) and the weights -> output map.
     """
     M, L = rows.shape[2], keys.shape[2]
     row = torch.arange(M, device=rows.device)[:, None, None]  # broadcasts over (M, N, k)
@@ -217,14 +248,13 @@ def _band_attention(
     reach = int(offset.amax()) if offset.numel() else 0
     width = min(2 * reach + 1, M)
     start = (torch.arange(M, device=rows.device) - reach).clamp(0, M - width)
-    window = start[:, None] + torch.arange(width, device=rows.device)  # (M, W)
     # Key (l, n) of row m sits in slot (n - start(m)) · L + l; invalid keys go to a spare slot.
     slot = ((points - start[:, None, None]) * L + lines).masked_fill(~valid, width * L)
     mask = torch.zeros(*slot.shape[:-1], width * L + 1, dtype=torch.bool, device=rows.device)
-    mask = mask.scatter_(-1, slot, True)[..., :-1]
-
-    def band(x: Tensor) -> Tensor:  # (B, H, L, M, d) -> (B, H, M, W·L, d): row m's window of keys
-        return x.transpose(2, 3).contiguous()[:, :, window].flatten(3, 4)
-
-    k_band, v_band = band(keys), band(values)
-    return rows @ k_band.transpose(-1, -2), mask, lambda w: w @ v_band
+    mask = mask.scatter_(-1, slot, True)[..., :-1].unflatten(-1, (width, L))  # (B, M, N, W, L)
+    keys, values = keys.transpose(2, 3), values.transpose(2, 3)  # (B, H, M, L, d): point-major
+    for o in range(width):
+        point = start + o  # (M,): the point of every line that row m scores in this chunk
+        k_o, v_o = keys[:, :, point], values[:, :, point]  # (B, H, M, L, d)
+        yield rows @ k_o.transpose(-1, -2), mask[..., o, :], lambda w, v_o=v_o: w @ v_o
+        del k_o, v_o  # before the next slot's keys are gathered
