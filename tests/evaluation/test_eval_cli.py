@@ -91,5 +91,5 @@ def test_the_command_names_unknown_and_missing_options(tmp_path):
     unknown = run_eval(*options(data, tmp_path / "out", "long_rnage=true"))
     assert unknown.returncode != 0 and "long_rnage" in unknown.stderr + unknown.stdout
     missing = run_eval(f"pred={data.pred}")
-    assert missing.returncode == 2 and "missing option gt" in missing.stderr
+    assert missing.returncode == 2 and "gt: missing" in missing.stderr
     assert not (tmp_path / "out").exists()

@@ -1,22 +1,16 @@
-"""``lanelab-eval``: the OpenLane metric over prediction files, printed and written as the
-papers' tables, with pictures of a few frames.
+"""``lanelab-eval``: the OpenLane metric over prediction files, or over a trained model on a
+clip store, printed and written as the papers' tables, with pictures of a few frames.
 
     lanelab-eval gt=DIR pred=DIR test_list=FILE out=DIR [long_range=true] [scenario_lists=DIR] [images=DIR]
+    lanelab-eval checkpoint=FILE store=DIR [split=test] out=DIR [accelerator=cpu]
 
 Options are Hydra overrides of ``conf/eval.yaml``. Writes ``<out>/report.json``,
-``<out>/report.md`` and ``<out>/pictures.png``. Exits with status 1 on a malformed or
-missing input file (the message names it) and 2 on a bad option.
-
-Hook for evaluating a checkpoint on a clip store (issue 6, not implemented here): :func:`run`
-gets its frame results from :func:`evaluate_prediction_files` and its pictures from
-:func:`~lanelab.evaluation.pictures.read_openlane_frame`. A checkpoint run replaces just
-these two sources and keeps the rest (report, tables, files): it decodes the model on each
-labeled frame of the store's split and scores the decoded lanes against the frame's lanes
-with :func:`lanelab.metrics.openlane.evaluate_frame` (frame ids ``"<clip_id>/<timestamp_ns>"``;
-scenarios from the frames' ``tags`` with :func:`lanelab.metrics.scenarios.tag_scenarios`),
-and draws :class:`~lanelab.evaluation.pictures.PictureFrame` s from the frames' images, K and
-T_lane_cam. Its options (``checkpoint=FILE store=DIR split=...``) join ``conf/eval.yaml`` then,
-with gt / pred / test_list becoming the alternative.
+``<out>/report.md`` and ``<out>/pictures.png``; a checkpoint's predictions, with the store's
+ground truth as OpenLane JSON, go to ``<out>/predictions`` and ``<out>/ground_truth``
+(:func:`lanelab.experiment.evaluate.evaluate_checkpoint`: the model, its metric settings and
+the data pipeline are rebuilt from the run config inside the checkpoint; scenarios come from
+the store's tags). Exits with status 1 on a malformed or missing input file (the message
+names it) and 2 on a bad option.
 """
 
 from __future__ import annotations
@@ -47,7 +41,8 @@ def evaluate_prediction_files(cfg: EvalConfig, config: OpenLaneConfig) -> list[t
 
 
 def run(cfg: EvalConfig) -> list[Path]:
-    """Evaluate, print the tables, write the report and the pictures; the paths written.
+    """Evaluate, print the tables, write the report and the pictures; the paths written
+    (prediction files, or a checkpoint on a store).
 
     Raises LaneFileError (naming the file) for a malformed or missing input.
     """
@@ -61,6 +56,12 @@ def run(cfg: EvalConfig) -> list[Path]:
     from lanelab.evaluation.report import build_report, to_text, write_report
     from lanelab.evaluation.scenario_lists import read_scenario_lists, scenarios_of
 
+    if cfg.checkpoint is not None:
+        from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here
+
+        options = {"num_pictures": cfg.pictures.num_frames, "picture_height": cfg.pictures.height}
+        evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, cfg.split, cfg.accelerator, **options)
+        return sorted(Path(cfg.out).glob("report.*")) + sorted(Path(cfg.out).glob(PICTURES_PNG))
     config = OpenLaneConfig.long_range() if cfg.long_range else OpenLaneConfig()
     results = evaluate_prediction_files(cfg, config)
     scenarios = []
@@ -95,6 +96,9 @@ def _run(cfg: DictConfig) -> None:
     except LaneFileError as err:
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(1)
+    except ConfigError as err:  # a checkpoint that lanelab-train did not write, or a stale config in it
+        print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
+        sys.exit(2)
 
 
 def main() -> None:

@@ -25,9 +25,13 @@ class PicturesConfig:
 
 @dataclass
 class EvalConfig:
-    gt: str = MISSING
-    pred: str = MISSING
-    test_list: str = MISSING
+    gt: Optional[str] = None
+    pred: Optional[str] = None
+    test_list: Optional[str] = None
+    checkpoint: Optional[str] = None
+    store: Optional[str] = None
+    split: str = MISSING
+    accelerator: str = MISSING
     out: str = MISSING
     long_range: bool = MISSING
     scenario_lists: Optional[str] = None
@@ -35,8 +39,28 @@ class EvalConfig:
     pictures: PicturesConfig = field(default_factory=PicturesConfig)
 
 
+FILE_OPTIONS = ("gt", "pred", "test_list")  # the prediction-files mode
+CHECKPOINT_OPTIONS = ("checkpoint", "store")  # the checkpoint mode
+
+
 def validate(cfg: EvalConfig) -> EvalConfig:
     """Check every option; raise :class:`ConfigError` naming the first bad key."""
+    modes = "give gt, pred and test_list (prediction files) or checkpoint and store (a trained model)"
+    chosen = CHECKPOINT_OPTIONS if cfg.checkpoint is not None or cfg.store is not None else FILE_OPTIONS
+    other = FILE_OPTIONS if chosen is CHECKPOINT_OPTIONS else CHECKPOINT_OPTIONS
+    for key in chosen:
+        if getattr(cfg, key) is None:
+            raise ConfigError(f"{key}: missing ({modes})")
+    for key in other:
+        if getattr(cfg, key) is not None:
+            raise ConfigError(f"{key}: not used with {chosen[0]}=... ({modes})")
+    if chosen is CHECKPOINT_OPTIONS:
+        for key in ("long_range", "scenario_lists", "images"):
+            if getattr(cfg, key):
+                raise ConfigError(f"{key}: applies to prediction files; a checkpoint is scored with its "
+                                  "model's metric settings and the store's images and tags")  # fmt: skip
+    check_existing("checkpoint", cfg.checkpoint, "file")
+    check_existing("store", cfg.store, "folder")
     check_existing("gt", cfg.gt, "folder")
     check_existing("pred", cfg.pred, "folder")
     check_existing("test_list", cfg.test_list, "file")

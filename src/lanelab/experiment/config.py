@@ -64,6 +64,7 @@ class TrainConfig:
     task_name: str = MISSING
     tags: list[str] = field(default_factory=list)
     seed: int = MISSING
+    cpu_threads: int | None = None
     train: bool = MISSING
     test: bool = MISSING
     ckpt_path: str | None = None
@@ -93,6 +94,8 @@ def validate(cfg: DictConfig) -> DictConfig:
         raise ConfigError("train, test and evaluation.enabled are all false: nothing to do")
     if not cfg.train and cfg.ckpt_path is None:
         raise ConfigError("ckpt_path: needed when train=false (the weights to test or evaluate)")
+    if cfg.cpu_threads is not None and cfg.cpu_threads < 1:
+        raise ConfigError(f"cpu_threads={cfg.cpu_threads} must be >= 1 (or null)")
     if cfg.evaluation.num_pictures < 0:
         raise ConfigError(f"evaluation.num_pictures={cfg.evaluation.num_pictures} must be >= 0")
     return cfg

@@ -11,23 +11,32 @@ the frames by the store's scenario tags (weather, occlusion, curvature, ...;
 draw ``pictures.png`` on the store's camera images. Layout of ``out``::
 
     predictions/  ground_truth/  test_list.txt  report.md  report.json  pictures.png
+
+:func:`evaluate_checkpoint` does the same from a checkpoint file alone (``lanelab-eval
+checkpoint=... store=...``): lanelab-train writes the run's resolved config into every
+checkpoint, so the model, its metric settings and the data pipeline are rebuilt as trained.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path, PurePosixPath
 
 import lightning.pytorch as pl
 import numpy as np
 import pyarrow.parquet as pq
-from omegaconf import DictConfig
+import torch
+from omegaconf import DictConfig, OmegaConf
 
+from lanelab.config_checks import ConfigError
 from lanelab.data.clip_store import ClipStore
 from lanelab.data.datamodule import ClipDataModule
 from lanelab.data.image_codec import decode_image
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
-from lanelab.evaluation.report import Report, build_report, to_text, write_report
+from lanelab.evaluation.report import REPORT_JSON, Report, build_report, to_text, write_report
+from lanelab.experiment.config import validate
+from lanelab.experiment.train import CONFIG_KEY, train
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.metrics.openlane import evaluate_frames
@@ -75,6 +84,41 @@ def evaluate(
         written.append(write_png(out / PICTURES_PNG, draw_pictures(frames, options.picture_height, y_range)))
     print("wrote " + ", ".join(str(path) for path in written))
     return report
+
+
+def evaluate_checkpoint(
+    checkpoint: str | Path,
+    store: str | Path,
+    out: str | Path,
+    split: str = "test",
+    accelerator: str = "auto",
+    num_pictures: int = 4,
+    picture_height: int = 360,
+) -> dict:
+    """Score a lanelab-train checkpoint on one split of a clip store, on one device: the
+    predictions, report and pictures of :func:`evaluate` under ``out``. Returns report.json's
+    content. Raises ConfigError naming the checkpoint when it holds no lanelab run config."""
+    cfg = OmegaConf.create(run_config(checkpoint))
+    cfg.merge_with({
+        "train": False, "test": False, "ckpt_path": str(checkpoint), "logger": None,
+        "data": {"store": str(store), "splits": {"predict": split}},
+        "paths": {"output_dir": str(out)},
+        "evaluation": {"enabled": True, "out": str(out), "num_pictures": num_pictures, "picture_height": picture_height},
+        "trainer": {"accelerator": accelerator, "devices": 1, "num_nodes": 1, "strategy": "auto"},
+    })  # fmt: skip
+    train(validate(cfg))
+    return json.loads((Path(out) / REPORT_JSON).read_text())
+
+
+def run_config(checkpoint: str | Path) -> dict:
+    """The resolved run config lanelab-train wrote into the checkpoint."""
+    try:
+        content = torch.load(checkpoint, map_location="cpu", weights_only=False)
+    except Exception as err:  # torch raises many kinds for a bad file
+        raise ConfigError(f"checkpoint={checkpoint}: not a readable checkpoint ({err})") from None
+    if not isinstance(content, dict) or CONFIG_KEY not in content:
+        raise ConfigError(f"checkpoint={checkpoint}: holds no lanelab run config (not written by lanelab-train)")
+    return content[CONFIG_KEY]
 
 
 def frame_tags(store: ClipStore, clip_ids: set[str]) -> dict[str, dict[str, str]]:

@@ -21,15 +21,17 @@ from pathlib import Path
 
 import hydra
 import lightning.pytorch as pl
+import torch
 from hydra.utils import instantiate
 from lightning.pytorch.loggers import WandbLogger
 from omegaconf import DictConfig, OmegaConf
-from torch import Tensor
 
 from lanelab.atomic_file import atomic_output
 from lanelab.config_checks import ConfigError, register_schema
 from lanelab.experiment import METRICS_JSON
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
+
+CONFIG_KEY = "lanelab_config"
 
 register_schema(SCHEMA_NAME, TrainConfig)
 
@@ -38,9 +40,12 @@ def train(cfg: DictConfig) -> dict[str, float]:
     """Run a composed, validated config; the last value of every metric logged by fitting
 and testing (also written to ``metrics.json``)."""
     pl.seed_everything(cfg.seed, workers=True)
+    if cfg.cpu_threads is not None:
+        torch.set_num_threads(cfg.cpu_threads)
     datamodule = instantiate(cfg.data)
     module = instantiate(cfg.model)
     callbacks = [instantiate(node) for node in (cfg.callbacks or {}).values()]
+    callbacks.append(RunConfigInCheckpoint(cfg))
     loggers = [instantiate(node) for node in (cfg.logger or {}).values()]
     trainer = instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
     for logger in loggers:
@@ -69,7 +74,18 @@ and testing (also written to ``metrics.json``)."""
     return metrics
 
 
-def _floats(metrics: Mapping[str, Tensor]) -> dict[str, float]:
+class RunConfigInCheckpoint(pl.Callback):
+    """Writes the run's resolved config into every checkpoint (key ``lanelab_config``), so that
+    ``lanelab-eval checkpoint=...`` rebuilds the same model and data pipeline from the file alone."""
+
+    def __init__(self, cfg: DictConfig) -> None:
+        self.config = OmegaConf.to_container(cfg, resolve=True)
+
+    def on_save_checkpoint(self, trainer: pl.Trainer, module: pl.LightningModule, checkpoint: dict) -> None:
+        checkpoint[CONFIG_KEY] = self.config
+
+
+def _floats(metrics: Mapping[str, torch.Tensor]) -> dict[str, float]:
     return {key: float(value) for key, value in metrics.items()}
 
 
