@@ -129,12 +129,13 @@ class SpatioTemporalAttention(nn.Module):
         a row against the same keys, one batched matmul per chunk, and the chunks share one
         softmax (:class:`_ChunkedSoftmax`)."""
         B, H, N, M, d = q.shape
-        rows = (q * d**-0.5).transpose(2, 3).contiguous()  # softmax scale applied to the queries
+        q = q.mul_(d**-0.5)  # the softmax scale applied to the queries (q is this layer's own copy)
+        rows = q.transpose(2, 3).contiguous()  # (B, H, M, N, d)
         softmax = _ChunkedSoftmax(self.dropout if self.training else 0.0)
         if nb.use_sla:  # block-diagonal: the M x M attention of every line
-            logits = (rows.transpose(2, 3) @ k.transpose(-1, -2)).transpose(2, 3)  # (B, H, M, N, M)
+            logits = _bmm(q, k.transpose(-1, -2)).transpose(2, 3)  # (B, H, M, N, M)
             mask = nb.line_valid[:, None, :, None].expand(B, M, N, M)
-            softmax.add(logits, mask, lambda w: (w.transpose(2, 3) @ v).transpose(2, 3))
+            softmax.add(logits, mask, lambda w: _bmm(w.transpose(2, 3), v).transpose(2, 3))
         if nb.pna_index is not None:  # neighbours on the current lines
             lines = torch.arange(N, device=q.device).repeat_interleave(nb.pna_index.shape[-1])
             index, valid = nb.pna_index.transpose(1, 2).flatten(-2), nb.pna_valid.transpose(1, 2).flatten(-2)
@@ -184,15 +185,21 @@ class SpatioTemporalAttention(nn.Module):
         return self.dropout if self.training else 0.0
 
     def _split_heads(self, x: Tensor) -> Tensor:
-        """(B, ..., C) -> (B, H, ..., C / H)."""
-        return x.unflatten(-1, (self.num_heads, -1)).movedim(-2, 1)
+        """(B, ..., C) -> (B, H, ..., C / H), contiguous (batched matmuls over heads take it as is)."""
+        return x.unflatten(-1, (self.num_heads, -1)).movedim(-2, 1).contiguous()
+
+
+# exp() of arguments below this takes a slow path on CPUs (several times slower); the weight it
+# gives a masked key, 1.6e-38 against 1 for the row's maximum, is zero to float precision.
+EXP_FLOOR = -87.0
 
 
 class _ChunkedSoftmax:
     """One softmax attention over keys that arrive in chunks (the running-maximum form of
     flash attention): only one chunk's logits exist at a time, and no key vector is copied
-    more than once. Masked keys get the dtype's lowest value, so a query without any active
-    key attends to every key and then outputs zero, like _masked_sdpa; no inf - inf arises."""
+    more than once. Masked keys get the dtype's lowest value (not -inf: no inf - inf arises),
+    so a query without any active key attends to every key and then outputs zero, like
+    _masked_sdpa."""
 
     def __init__(self, dropout: float) -> None:
         self.dropout = dropout
@@ -202,18 +209,18 @@ class _ChunkedSoftmax:
         self.has_key: Tensor | None = None  # (B, M, N, 1)
 
     def add(self, logits: Tensor, mask: Tensor, weighted_sum: Callable[[Tensor], Tensor]) -> None:
-        """logits (B, H, M, N, a), a fresh tensor (filled in place); mask (B, M, N, a);
+        """logits (B, H, M, N, a), a fresh tensor (changed in place); mask (B, M, N, a);
         weighted_sum maps weights (B, H, M, N, a) to the sum of their values (B, H, M, N, d)."""
         logits = logits.masked_fill_(~mask[:, None], torch.finfo(logits.dtype).min)
         new_max = logits.detach().amax(-1, keepdim=True)
         if self.max is not None:
             new_max = torch.maximum(self.max, new_max)
-        weights = logits.sub_(new_max).exp_()
+        weights = logits.sub_(new_max).clamp_min_(EXP_FLOOR).exp_()
         total = weights.sum(-1, keepdim=True)
         out = weighted_sum(F.dropout(weights, self.dropout, self.dropout > 0))
         has_key = mask.any(-1, keepdim=True)
         if self.max is not None:  # rescale what came before to the new maximum (in place: no copies)
-            rescale = (self.max - new_max).exp_()
+            rescale = (self.max - new_max).clamp_min_(EXP_FLOOR).exp_()
             total, out, has_key = total.add_(self.total.mul_(rescale)), out.add_(self.out.mul_(rescale)), has_key | self.has_key
         self.max, self.total, self.out, self.has_key = new_max, total, out, has_key
 
@@ -252,9 +259,17 @@ def _band_chunks(
     slot = ((points - start[:, None, None]) * L + lines).masked_fill(~valid, width * L)
     mask = torch.zeros(*slot.shape[:-1], width * L + 1, dtype=torch.bool, device=rows.device)
     mask = mask.scatter_(-1, slot, True)[..., :-1].unflatten(-1, (width, L))  # (B, M, N, W, L)
-    keys, values = keys.transpose(2, 3), values.transpose(2, 3)  # (B, H, M, L, d): point-major
+    # (B, H, M, L, d) point-major and contiguous, so that every gathered slot is contiguous too
+    keys, values = keys.transpose(2, 3).contiguous(), values.transpose(2, 3).contiguous()
     for o in range(width):
         point = start + o  # (M,): the point of every line that row m scores in this chunk
         k_o, v_o = keys[:, :, point], values[:, :, point]  # (B, H, M, L, d)
-        yield rows @ k_o.transpose(-1, -2), mask[..., o, :], lambda w, v_o=v_o: w @ v_o
+        yield _bmm(rows, k_o.transpose(-1, -2)), mask[..., o, :], lambda w, v_o=v_o: _bmm(w, v_o)
         del k_o, v_o  # before the next slot's keys are gathered
+
+
+def _bmm(a: Tensor, b: Tensor) -> Tensor:
+    """a (..., n, k) @ b (..., k, m) -> (..., n, m), as one bmm over the leading dimensions:
+    unlike matmul, bmm takes a transposed operand as it is instead of copying it."""
+    batch = a.shape[:-2]
+    return torch.bmm(a.reshape(-1, *a.shape[-2:]), b.reshape(-1, *b.shape[-2:])).view(*batch, a.shape[-2], b.shape[-1])
