@@ -125,17 +125,17 @@ class SpatioTemporalAttention(nn.Module):
     ) -> Tensor:
         """q, k, v (B, H, N, M, d); k_mem, v_mem (B, K, C) -> (B, H, N, M, d).
 
-        Works on queries ordered by point row, (B, H, M, N, d): a chunk scores all N queries of
-        a row against the same keys, one batched matmul per chunk, and the chunks share one
+        Works on queries ordered by point row, point-major: (M, B, H, N, d). A chunk scores all
+        N queries of a row against the same keys, one bmm per chunk, and the chunks share one
         softmax (:class:`_ChunkedSoftmax`)."""
         B, H, N, M, d = q.shape
         q = q.mul_(d**-0.5)  # the softmax scale applied to the queries (q is this layer's own copy)
-        rows = q.transpose(2, 3).contiguous()  # (B, H, M, N, d)
+        rows = q.permute(3, 0, 1, 2, 4).contiguous()  # (M, B, H, N, d)
         softmax = _ChunkedSoftmax(self.dropout if self.training else 0.0)
         if nb.use_sla:  # block-diagonal: the M x M attention of every line
-            logits = _bmm(q, k.transpose(-1, -2)).transpose(2, 3)  # (B, H, M, N, M)
-            mask = nb.line_valid[:, None, :, None].expand(B, M, N, M)
-            softmax.add(logits, mask, lambda w: _bmm(w.transpose(2, 3), v).transpose(2, 3))
+            logits = _bmm(q, k.transpose(-1, -2)).permute(3, 0, 1, 2, 4)  # (M, B, H, N, M)
+            mask = nb.line_valid[None, :, None, :, None]  # every point of a real line
+            softmax.add(logits, mask, lambda w: _bmm(w.permute(1, 2, 3, 0, 4), v).permute(3, 0, 1, 2, 4))
         if nb.pna_index is not None:  # neighbours on the current lines
             lines = torch.arange(N, device=q.device).repeat_interleave(nb.pna_index.shape[-1])
             index, valid = nb.pna_index.transpose(1, 2).flatten(-2), nb.pna_valid.transpose(1, 2).flatten(-2)
@@ -145,7 +145,7 @@ class SpatioTemporalAttention(nn.Module):
             v_lines = self._split_heads(v_mem).unflatten(2, (-1, M))
             index, valid = nb.tca_index.transpose(1, 2), nb.tca_valid.transpose(1, 2)
             softmax.add_all(_band_chunks(rows, k_lines, v_lines, index // M, index % M, valid))
-        return softmax.result().transpose(2, 3)
+        return softmax.result().permute(1, 2, 3, 0, 4)
 
     def _dense(
         self, q: Tensor, k: Tensor, v: Tensor, k_mem: Tensor | None, v_mem: Tensor | None, nb: Neighbours
@@ -203,15 +203,15 @@ class _ChunkedSoftmax:
 
     def __init__(self, dropout: float) -> None:
         self.dropout = dropout
-        self.max: Tensor | None = None  # (B, H, M, N, 1) running maximum (no gradient: softmax is shift-invariant)
-        self.total: Tensor | None = None  # (B, H, M, N, 1) running sum of exp(logit - max)
-        self.out: Tensor | None = None  # (B, H, M, N, d) running weighted sum of the values
-        self.has_key: Tensor | None = None  # (B, M, N, 1)
+        self.max: Tensor | None = None  # (M, B, H, N, 1) running maximum (no gradient: softmax is shift-invariant)
+        self.total: Tensor | None = None  # (M, B, H, N, 1) running sum of exp(logit - max)
+        self.out: Tensor | None = None  # (M, B, H, N, d) running weighted sum of the values
+        self.has_key: Tensor | None = None  # (M or 1, B, 1, N, 1)
 
     def add(self, logits: Tensor, mask: Tensor, weighted_sum: Callable[[Tensor], Tensor]) -> None:
-        """logits (B, H, M, N, a), a fresh tensor (changed in place); mask (B, M, N, a);
-        weighted_sum maps weights (B, H, M, N, a) to the sum of their values (B, H, M, N, d)."""
-        logits = logits.masked_fill_(~mask[:, None], torch.finfo(logits.dtype).min)
+        """logits (M, B, H, N, a), a fresh tensor (changed in place); mask broadcastable to it
+        with 1 head; weighted_sum maps weights (M, B, H, N, a) to their values' sum (M, B, H, N, d)."""
+        logits = logits.masked_fill_(~mask, torch.finfo(logits.dtype).min)
         new_max = logits.detach().amax(-1, keepdim=True)
         if self.max is not None:
             new_max = torch.maximum(self.max, new_max)
@@ -230,8 +230,8 @@ class _ChunkedSoftmax:
             del chunk  # before the next chunk is computed: one chunk alive at a time
 
     def result(self) -> Tensor:
-        """(B, H, M, N, d) the attention output; zero for queries without a key."""
-        return self.out / self.total * self.has_key[:, None]
+        """(M, B, H, N, d) the attention output; zero for queries without a key."""
+        return self.out / self.total * self.has_key
 
 
 def _band_chunks(
@@ -239,33 +239,38 @@ def _band_chunks(
 ) -> Iterator[tuple[Tensor, Tensor, Callable[[Tensor], Tensor]]]:
     """Attention chunks over keys that lie on lines of M points, near the query's point index.
 
-    rows (B, H, M, N, d): the queries, row m holding point m of every line; keys, values
+    rows (M, B, H, N, d): the queries, row m holding point m of every line; keys, values
     (B, H, L, M, d): L lines of M points; lines, points, valid (B, M, N, k) (lines may
     broadcast): line and point index of the keys of query (line i, point m).
-    With reach = max |point - m| over the valid keys, row m looks at the W = min(2·reach + 1, M)
-    points [start(m), start(m) + W) of every line, start(m) = clamp(m - reach, 0, M - W): a
-    window that holds [m - reach, m + reach] ∩ [0, M), so the band is exact for any geometry,
-    and narrow (W = 3 for parallel lanes) where lines run alike. One chunk per window slot o:
-    every row scores point start(m) + o of all L lines.
-    Yields logits (B, H, M, N, L), mask (B, M, N, L) and the weights -> output map.
+    With reach = max |point - m| over the valid keys, row m looks at the W = 2·reach + 1 points
+    m - reach ... m + reach of every line: exact for any geometry, and narrow (W = 3 for
+    parallel lanes) where lines run alike. One chunk per window slot o: every row m scores
+    point m - reach + o of all L lines. The keys are laid out point-major, (M, B, H, L, d),
+    with reach zero points before and after (masked), so a slot's keys are the slice
+    [o, o + M) of that tensor: a view, nothing gathered.
+    Yields logits (M, B, H, N, L), mask (M, B, 1, N, L) and the weights -> output map.
     """
-    M, L = rows.shape[2], keys.shape[2]
+    M, L = rows.shape[0], keys.shape[2]
     row = torch.arange(M, device=rows.device)[:, None, None]  # broadcasts over (M, N, k)
-    offset = (points - row).abs().masked_fill(~valid, 0)
-    reach = int(offset.amax()) if offset.numel() else 0
-    width = min(2 * reach + 1, M)
-    start = (torch.arange(M, device=rows.device) - reach).clamp(0, M - width)
-    # Key (l, n) of row m sits in slot (n - start(m)) · L + l; invalid keys go to a spare slot.
-    slot = ((points - start[:, None, None]) * L + lines).masked_fill(~valid, width * L)
+    slot = (points - row).masked_fill(~valid, 0)
+    reach = int(slot.abs().amax()) if slot.numel() else 0
+    width = 2 * reach + 1
+    # Key (l, point) of row m sits in slot (point - m + reach) · L + l; invalid keys in a spare slot.
+    slot = ((slot + reach) * L + lines).masked_fill(~valid, width * L)
     mask = torch.zeros(*slot.shape[:-1], width * L + 1, dtype=torch.bool, device=rows.device)
     mask = mask.scatter_(-1, slot, True)[..., :-1].unflatten(-1, (width, L))  # (B, M, N, W, L)
-    # (B, H, M, L, d) point-major and contiguous, so that every gathered slot is contiguous too
-    keys, values = keys.transpose(2, 3).contiguous(), values.transpose(2, 3).contiguous()
+    mask = mask.permute(3, 1, 0, 2, 4)[:, :, :, None]  # (W, M, B, 1, N, L)
+    keys, values = _point_major(keys, reach), _point_major(values, reach)  # (M + 2·reach, B, H, L, d)
     for o in range(width):
-        point = start + o  # (M,): the point of every line that row m scores in this chunk
-        k_o, v_o = keys[:, :, point], values[:, :, point]  # (B, H, M, L, d)
-        yield _bmm(rows, k_o.transpose(-1, -2)), mask[..., o, :], lambda w, v_o=v_o: _bmm(w, v_o)
-        del k_o, v_o  # before the next slot's keys are gathered
+        k_o, v_o = keys[o : o + M], values[o : o + M]  # (M, B, H, L, d): point m - reach + o of row m
+        yield _bmm(rows, k_o.transpose(-1, -2)), mask[o], lambda w, v_o=v_o: _bmm(w, v_o)
+
+
+def _point_major(x: Tensor, pad: int) -> Tensor:
+    """(B, H, L, M, d) -> (M + 2·pad, B, H, L, d), contiguous, zero points before and after."""
+    out = x.new_zeros(x.shape[3] + 2 * pad, *x.shape[:3], x.shape[4])
+    out[pad : pad + x.shape[3]] = x.permute(3, 0, 1, 2, 4)
+    return out
 
 
 def _bmm(a: Tensor, b: Tensor) -> Tensor:
