@@ -1,0 +1,122 @@
+"""``lanelab-demo``: the main job end to end on the embedded default, synthetic drives.
+
+    lanelab-demo [key=value ...]        # Hydra overrides of experiment=demo, e.g. demo.out=DIR trainer.max_steps=300
+
+1. ``lanelab-synth`` writes the training drives and the held-out drives (fog, dense traffic);
+2. ``lanelab-ingest`` turns them into two clip stores: train / val, and the held-out test;
+3. every model of ``demo.models`` (the temporal SparseLaneSTP and its single-frame baseline)
+   is trained alike on the first (:func:`lanelab.experiment.train.train`),
+4. and evaluated on the second from its best checkpoint, as ``lanelab-eval checkpoint=...
+   store=...`` does (:func:`lanelab.experiment.evaluate.evaluate_checkpoint`): report,
+   prediction files and pictures per model;
+5. the comparison (F1 over all held-out frames and per scenario, x / z errors) is printed
+   and written to ``<demo.out>/comparison.md``.
+
+Everything it runs is configured in ``conf/experiment/demo.yaml``. The drive-log tools run
+as their own commands (lanelab does not import ``data_ingest``).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig
+
+from lanelab.atomic_file import atomic_output
+from lanelab.experiment.config import load_train_config
+from lanelab.experiment.evaluate import evaluate_checkpoint
+from lanelab.experiment.train import train
+
+COMPARISON_MD = "comparison.md"
+
+
+def main(argv: list[str] | None = None) -> None:
+    overrides = ["experiment=demo", *(sys.argv[1:] if argv is None else argv)]
+    base = load_train_config([*overrides, "paths.output_dir=."])
+    demo = base.demo
+    out = Path(demo.out)
+    start = time.monotonic()
+
+    _step(start, "synthesizing drive logs")
+    _tool("lanelab-synth", f"output_dir={out / 'logs' / 'train'}", *demo.synth, *demo.train_logs)
+    for name, options in demo.test_logs.items():
+        _tool("lanelab-synth", f"output_dir={out / 'logs' / 'test' / name}", *demo.synth, *options)
+    _step(start, "ingesting them into clip stores")
+    train_store, test_store = out / "clips_train", out / "clips_test"
+    _tool("lanelab-ingest", f"input={out / 'logs' / 'train'}", f"output={train_store}", *demo.ingest_train)
+    _tool("lanelab-ingest", f"input={out / 'logs' / 'test'}", f"output={test_store}", *demo.ingest_test)
+
+    reports, steps = {}, {}
+    for model in demo.models:
+        run = out / model
+        _step(start, f"training {model}")
+        fit = train(load_train_config([*overrides, f"model={model}", f"data.store={train_store}",
+                                       f"paths.output_dir={run / 'train'}"]))  # fmt: skip
+        steps[model] = int(fit["train/steps"])
+        _step(start, f"evaluating {model} on the held-out drives (lanelab-eval checkpoint=... store=...)")
+        reports[model] = evaluate_checkpoint(_best_checkpoint(run / "train"), test_store, run / "heldout",
+                                             num_pictures=base.evaluation.num_pictures,
+                                             picture_height=base.evaluation.picture_height)  # fmt: skip
+
+    table = comparison(reports, steps, demo)
+    with atomic_output(out / COMPARISON_MD) as tmp:
+        tmp.write_text(f"# lanelab-demo: held-out drives\n\n{table}")
+    print(f"\nHeld-out drives ({', '.join(demo.test_logs)}), {_minutes(start)} in all:\n\n{table}")
+    for model in demo.models:
+        print(f"{model}: report and pictures in {out / model / 'heldout'}")
+
+
+def comparison(reports: dict[str, dict[str, Any]], steps: dict[str, int], demo: DictConfig) -> str:
+    """A Markdown table: one row per model, its training steps, F1 over all held-out frames
+    and per scenario column of demo.columns, and the x / z errors (percent and metres)."""
+    errors = [key for key in next(iter(reports.values()))["overall"] if key.startswith(("x_error_", "z_error_"))]
+    header = ["model", "steps", "F1 all (%)", *[f"F1 {label} (%)" for label in demo.columns], *[f"{e} (m)" for e in errors]]
+    lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * (len(header) - 1)]
+    for model, report in reports.items():
+        f1 = [report["overall"]["f1"], *[_scenario_f1(report, group, name) for group, name in demo.columns.values()]]
+        cells = [model, str(steps[model]), *[_number(v, 100, 1) for v in f1],
+                 *[_number(report["overall"][e], 1, 3) for e in errors]]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _scenario_f1(report: dict[str, Any], group: str, scenario: str) -> float | None:
+    rows = [row for row in report["scenarios"] if row["group"] == group and row["scenario"] == scenario]
+    return rows[0]["f1"] if rows else None
+
+
+def _number(value: float | None, scale: float, digits: int) -> str:
+    return "–" if value is None else f"{scale * value:.{digits}f}"  # None: no pair had a value
+
+
+def _best_checkpoint(run: Path) -> Path:
+    """The run's best checkpoint (the callback keeps one), else its last."""
+    return next((run / "checkpoints").glob("epoch*.ckpt"), run / "checkpoints" / "last.ckpt")
+
+
+def _tool(name: str, *overrides: str) -> None:
+    """Run a lanelab command (installed beside this Python, or on the PATH); stop if it fails."""
+    beside = Path(sys.executable).with_name(name)
+    command = str(beside) if beside.exists() else shutil.which(name)
+    if command is None:
+        sys.exit(f"lanelab-demo: {name} is not installed (pip install -e .)")
+    if subprocess.run([command, *overrides], check=False).returncode != 0:
+        sys.exit(f"lanelab-demo: {name} failed")
+
+
+def _step(start: float, what: str) -> None:
+    print(f"\n== lanelab-demo [{_minutes(start)}]: {what}", flush=True)
+
+
+def _minutes(start: float) -> str:
+    seconds = time.monotonic() - start
+    return f"{int(seconds // 60)} min {seconds % 60:04.1f} s"
+
+
+if __name__ == "__main__":
+    main()
