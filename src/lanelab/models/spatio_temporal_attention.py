@@ -17,7 +17,7 @@ Three implementations (``impl``) of the same layer:
   back is shifted by a point or two. So query row m scores a band of W point indices around m
   on every line, W = 2·reach + 1 with reach the largest |n - m| among the actual neighbours:
   exact for any geometry, narrow where lanes run alike (W = 3 for PNA on parallel lanes, at
-  most M). The scores are batched matmuls per query row; the masks keep the exact keys.
+  most 2M - 1). The scores are batched matmuls per query row; the masks keep the exact keys.
   The SLA block and the band's W point slots of PNA and TCA are chunks of ONE masked softmax,
   computed chunk by chunk with a running maximum (as flash attention does), so only one
   chunk's logits exist at a time. No (N·M)^2 matrix and no per-query copy of key vectors:
