@@ -96,8 +96,9 @@ def test_the_loss_skips_padding_and_unlabeled_frames(store):
     padded = {**batch, "padding": torch.tensor([False, True])}
     unlabeled = {**batch, "labeled": torch.cat([batch["labeled"][:, :-1], torch.tensor([[True], [False]])], 1)}
     expected = module.training_step(first, 0)
-    torch.testing.assert_close(module.training_step(padded, 0), expected)
-    torch.testing.assert_close(module.training_step(unlabeled, 0), expected)
+    # The batch size changes the order of float sums (batched matmuls), not the loss.
+    torch.testing.assert_close(module.training_step(padded, 0), expected, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(module.training_step(unlabeled, 0), expected, rtol=1e-5, atol=1e-5)
 
     nothing = module.training_step({**batch, "padding": torch.tensor([True, True])}, 0)
     assert nothing.item() == 0.0 and nothing.requires_grad  # still a step every DDP rank takes

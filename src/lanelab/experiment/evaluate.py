@@ -140,7 +140,9 @@ def _picture_frame(store: ClipStore, out: Path, frame: str) -> PictureFrame:
     """The evaluated frame's lanes from the files, drawn on the store's camera image (with its
     own K and T_lane_cam: the files hold the model input's)."""
     picture = read_openlane_frame(out / GROUND_TRUTH, out / PREDICTIONS, frame, None)
-    timestamp = int(PurePosixPath(frame).stem)
-    record = next(r for r in store.read_frames(_clip_id(frame)) if r.timestamp_ns == timestamp)
+    timestamp, clip_id = int(PurePosixPath(frame).stem), _clip_id(frame)
+    records = store.read_frames(clip_id)
+    record = next(r for r in records if r.timestamp_ns == timestamp)
     image = np.ascontiguousarray(decode_image(record)[..., ::-1])  # RGB -> BGR
-    return dataclasses.replace(picture, image=image, K=record.K, T_lane_cam=record.T_lane_cam)
+    title = f"{clip_id} {(timestamp - records[0].timestamp_ns) / 1e9:.1f} s"  # time into the clip
+    return dataclasses.replace(picture, title=title, image=image, K=record.K, T_lane_cam=record.T_lane_cam)

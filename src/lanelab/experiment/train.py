@@ -69,7 +69,7 @@ and testing (also written to ``metrics.json``)."""
     for logger in loggers:
         if isinstance(logger, WandbLogger):
             logger.experiment.finish()  # else the next run in this process (a sweep job) would reuse it
-    if trainer.is_global_zero:
+    if trainer.is_global_zero and metrics:  # an evaluation alone logs none
         _write_metrics(Path(cfg.paths.output_dir) / METRICS_JSON, metrics)
     return metrics
 
