@@ -24,10 +24,9 @@ from omegaconf.errors import MissingMandatoryValue
 
 from lanelab.config_checks import ConfigError, register_schema
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
+from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.metrics.json_files import LaneFileError
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
-
-PICTURES_PNG = "pictures.png"
 
 register_schema(SCHEMA_NAME, EvalConfig)
 
@@ -61,7 +60,8 @@ def run(cfg: EvalConfig) -> list[Path]:
 
         options = {"num_pictures": cfg.pictures.num_frames, "picture_height": cfg.pictures.height}
         evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, cfg.split, cfg.accelerator, **options)
-        return sorted(Path(cfg.out).glob("report.*")) + sorted(Path(cfg.out).glob(PICTURES_PNG))
+        written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
+        return [path for path in written if path.exists()]  # no pictures when num_frames=0
     config = OpenLaneConfig.long_range() if cfg.long_range else OpenLaneConfig()
     results = evaluate_prediction_files(cfg, config)
     scenarios = []
@@ -84,21 +84,16 @@ def run(cfg: EvalConfig) -> list[Path]:
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="eval")
 def _run(cfg: DictConfig) -> None:
     try:
-        eval_cfg = validate(OmegaConf.to_object(cfg))
+        run(validate(OmegaConf.to_object(cfg)))
     except MissingMandatoryValue as err:
         print(f"lanelab-eval: missing option {err.full_key}=...", file=sys.stderr)
         sys.exit(2)
-    except ConfigError as err:
+    except ConfigError as err:  # a bad option, or a checkpoint that lanelab-train did not write
         print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
         sys.exit(2)
-    try:
-        run(eval_cfg)
     except LaneFileError as err:
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(1)
-    except ConfigError as err:  # a checkpoint that lanelab-train did not write, or a stale config in it
-        print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
-        sys.exit(2)
 
 
 def main() -> None:

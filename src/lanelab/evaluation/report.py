@@ -31,6 +31,7 @@ from lanelab.metrics.scenarios import Scenario, markdown_table, mean_f1, scenari
 
 REPORT_JSON = "report.json"
 REPORT_MARKDOWN = "report.md"
+PICTURES_PNG = "pictures.png"  # the pictures beside the report (lanelab.evaluation.pictures)
 _SCORES = ("f1", "precision", "recall", "category_accuracy")
 
 

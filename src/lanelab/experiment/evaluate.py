@@ -34,7 +34,7 @@ from lanelab.data.clip_store import ClipStore
 from lanelab.data.datamodule import ClipDataModule
 from lanelab.data.image_codec import decode_image
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
-from lanelab.evaluation.report import REPORT_JSON, Report, build_report, to_text, write_report
+from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, Report, build_report, to_text, write_report
 from lanelab.experiment.config import validate
 from lanelab.experiment.train import CONFIG_KEY, train
 from lanelab.lightning import OpenLaneWriter
@@ -42,7 +42,6 @@ from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LI
 from lanelab.metrics.openlane import evaluate_frames
 from lanelab.metrics.scenarios import TABLE7_GROUPS, tag_scenarios
 
-PICTURES_PNG = "pictures.png"
 # Table 7's scenario groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
 SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}
 

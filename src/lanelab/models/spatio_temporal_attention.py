@@ -131,7 +131,7 @@ class SpatioTemporalAttention(nn.Module):
         B, H, N, M, d = q.shape
         q = q.mul_(d**-0.5)  # the softmax scale applied to the queries (q is this layer's own copy)
         rows = q.permute(3, 0, 1, 2, 4).contiguous()  # (M, B, H, N, d)
-        softmax = _ChunkedSoftmax(self.dropout if self.training else 0.0)
+        softmax = _ChunkedSoftmax(self._dropout_p())
         if nb.use_sla:  # block-diagonal: the M x M attention of every line
             logits = _bmm(q, k.transpose(-1, -2)).permute(3, 0, 1, 2, 4)  # (M, B, H, N, M)
             mask = nb.line_valid[None, :, None, :, None]  # every point of a real line
