@@ -10,7 +10,10 @@
    store=...`` does (:func:`lanelab.experiment.evaluate.evaluate_checkpoint`): report,
    prediction files and pictures per model;
 5. the comparison (F1 over all held-out frames and per scenario, x / z errors) is printed
-   and written to ``<demo.out>/comparison.md``.
+   and written to ``<demo.out>/comparison.md``, with a "blind prior" row: the training
+   store's mean lane layout predicted for every frame without looking at the images
+   (:mod:`lanelab.evaluation.blind_prior`), scored on the same held-out ground truth. A model
+   has learnt something from the camera only where it beats that row.
 
 Everything it runs is configured in ``conf/experiment/demo.yaml``. The drive-log tools run
 as their own commands (lanelab does not import ``data_ingest``).
@@ -28,6 +31,8 @@ from typing import Any
 from omegaconf import DictConfig
 
 from lanelab.atomic_file import atomic_output
+from lanelab.evaluation.blind_prior import NAME as BLIND_PRIOR_NAME
+from lanelab.evaluation.report import REFERENCE_KEY as BLIND_PRIOR
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.train import train
@@ -73,16 +78,29 @@ def main(argv: list[str] | None = None) -> None:
 
 def comparison(reports: dict[str, dict[str, Any]], steps: dict[str, int], demo: DictConfig) -> str:
     """A Markdown table: one row per model, its training steps, F1 over all held-out frames
-    and per scenario column of demo.columns, and the x / z errors (percent and metres)."""
+    and per scenario column of demo.columns, and the x / z errors (percent and metres); then
+    the blind prior's row (no training steps), from the reports' ``blind_prior`` (every
+    model's report scores the same prior on the same frames; the first one's is shown), or a
+    line saying why there is none."""
     errors = [key for key in next(iter(reports.values()))["overall"] if key.startswith(("x_error_", "z_error_"))]
     header = ["model", "steps", "F1 all (%)", *[f"F1 {label} (%)" for label in demo.columns], *[f"{e} (m)" for e in errors]]
     lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * (len(header) - 1)]
-    for model, report in reports.items():
-        f1 = [report["overall"]["f1"], *[_scenario_f1(report, group, name) for group, name in demo.columns.values()]]
-        cells = [model, str(steps[model]), *[_number(v, 100, 1) for v in f1],
-                 *[_number(report["overall"][e], 1, 3) for e in errors]]  # fmt: skip
+    rows = [(model, str(steps[model]), report) for model, report in reports.items()]
+    prior = next((report[BLIND_PRIOR] for report in reports.values() if BLIND_PRIOR in report), None)
+    if prior is not None and "overall" in prior:
+        rows.append((BLIND_PRIOR_NAME, "–", prior))
+    for name, model_steps, report in rows:
+        f1 = [report["overall"]["f1"], *[_scenario_f1(report, group, scenario) for group, scenario in demo.columns.values()]]
+        cells = [name, model_steps, *[_number(v, 100, 1) for v in f1],
+                 *[_number(report["overall"].get(e), 1, 3) for e in errors]]  # fmt: skip
         lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+    table = "\n".join(lines) + "\n"
+    if prior is None:
+        return table
+    if "overall" not in prior:
+        return table + f"\n{prior['description']}\n"
+    return table + (f"\n{BLIND_PRIOR_NAME}: the mean lane layout of {prior['store']} ({prior['split']} split), "
+                    "straight and flat, predicted for every frame without looking at the images.\n")  # fmt: skip
 
 
 def _scenario_f1(report: dict[str, Any], group: str, scenario: str) -> float | None:

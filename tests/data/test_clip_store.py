@@ -83,6 +83,18 @@ def test_windows_round_trip_reading_only_their_row_groups(store, monkeypatch):
         clips.read_frames("c9")
 
 
+def test_labels_are_read_without_the_images(store, monkeypatch):
+    root, frames = store
+    read_table = pq.read_table
+    columns = []
+    monkeypatch.setattr(pq, "read_table", lambda path, **kw: columns.append(kw.get("columns")) or read_table(path, **kw))
+    labels = ClipStore(root).read_labels("c0")
+    assert columns == [["labeled", "lanes"]]
+    assert [labeled for labeled, _ in labels] == [f.labeled for f in frames]
+    for (_, lanes), original in zip(labels, frames):
+        assert_same(FrameRecord(**{**vars(original), "lanes": lanes}), original)
+
+
 def test_readable_with_pyarrow_and_json_alone(store):
     root, frames = store
     manifest = json.loads((root / "manifest.json").read_text())

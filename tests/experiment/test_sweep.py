@@ -1,9 +1,13 @@
 """A 2-job multirun of the tiny config (basic launcher) and its lanelab-sweep-report."""
 
 import csv
+import json
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
+import yaml
 
 from lanelab.experiment.sweep_report import PLOT_PNG, REPORT_CSV, REPORT_MD, main
 
@@ -26,5 +30,45 @@ def test_multirun_and_report(tiny_store: Path, tmp_path: Path) -> None:
         rows = list(csv.DictReader(f))
     assert [row["model.net.num_memory_frames"] for row in rows] == ["0", "2"]
     assert {"f1", "precision", "recall", "x_error_close", "x_error_far", "z_error_close", "z_error_far"} <= set(rows[0])
-    assert "| model.net.num_memory_frames | F1 (%) |" in (multirun / REPORT_MD).read_text()
+    markdown = (multirun / REPORT_MD).read_text()
+    assert "| model.net.num_memory_frames | F1 (%) |" in markdown
+    assert "No blind prior row: the jobs' metrics.json hold none" in markdown  # they ran no evaluation
     assert (multirun / PLOT_PNG).stat().st_size > 0
+
+
+def fake_job(multirun: Path, number: int, value: str, store: str, f1: float, prior_f1: float | None) -> None:
+    """A finished job folder as lanelab-train leaves it: overrides, composed config, metrics."""
+    hydra = multirun / str(number) / ".hydra"
+    hydra.mkdir(parents=True)
+    (hydra / "overrides.yaml").write_text(yaml.safe_dump([f"model.net.num_points={value}", f"data.store={store}"]))
+    config = {"data": {"store": store, "splits": {"train": "train", "val": "val", "test": "test", "predict": "test"}}}
+    (hydra / "config.yaml").write_text(yaml.safe_dump(config))
+    metrics = {"test/f1": f1, "test/precision": f1, "test/recall": f1, "test/x_error_close": 0.2}
+    if prior_f1 is not None:
+        metrics.update({"blind_prior/f1": prior_f1, "blind_prior/precision": 0.3, "blind_prior/recall": 0.5,
+                        "blind_prior/x_error_close": 0.6, "blind_prior/num_frames": 300.0})  # fmt: skip
+    (multirun / str(number) / "metrics.json").write_text(json.dumps(metrics))
+
+
+@pytest.mark.parametrize("stores, prior_f1s, expected", [
+    (["s", "s"], [0.4, 0.4], "| blind prior | 40.0 | 30.0 | 50.0 | 0.600 |"),
+    (["s", "s"], [0.4, None], "| blind prior | 40.0 | 30.0 | 50.0 | 0.600 |"),
+    (["s", "t"], [0.4, 0.35], "No blind prior row: the jobs train on different stores (s, t)."),
+    (["s", "s"], [0.4, 0.35], "No blind prior row: the jobs scored different blind priors"),
+    (["s", "s"], [None, None], "No blind prior row: the jobs' metrics.json hold none"),
+])  # fmt: skip
+def test_the_report_shows_the_blind_prior_of_a_shared_store(stores, prior_f1s, expected, tmp_path: Path) -> None:
+    for number, (store, prior_f1) in enumerate(zip(stores, prior_f1s)):
+        fake_job(tmp_path, number, str(10 * (number + 1)), store, 0.5 + 0.1 * number, prior_f1)
+    main([str(tmp_path)])
+    markdown = (tmp_path / REPORT_MD).read_text()
+    assert expected in markdown
+    rows = [line for line in markdown.splitlines() if line.startswith(("| 10 |", "| 20 |"))]
+    assert [row.split(" | ")[-4] for row in rows] == ["50.0", "60.0"]  # the jobs' F1, whatever the key columns
+    if expected.startswith("| blind prior"):
+        assert markdown.index("| 20 | 60.0 |") < markdown.index("| blind prior")  # the reference closes the table
+        assert "the mean lane layout of the train split of s, straight and flat" in markdown
+        assert "scored on the test split" in markdown
+    with (tmp_path / REPORT_CSV).open() as f:
+        assert [row["model.net.num_points"] for row in csv.DictReader(f)] == ["10", "20"]  # the jobs alone
+    assert (tmp_path / PLOT_PNG).stat().st_size > 0

@@ -372,3 +372,10 @@ class ClipStore:
             table = parquet.read_row_groups(list(range(first, last + 1)))
         offset = start - (int(ends[first - 1]) if first > 0 else 0)
         return frames_from_table(table.slice(offset, stop - start))
+
+    def read_labels(self, clip_id: str) -> list[tuple[bool, list[LaneRecord]]]:
+        """Every frame's ``labeled`` flag and lanes, in time order, reading those two columns
+        alone (no images): what statistics over the labels of many frames need."""
+        table = pq.read_table(self.clip_path(clip_id), columns=["labeled", "lanes"])
+        lanes = _lanes_from_column(table["lanes"].combine_chunks())
+        return list(zip(table["labeled"].to_pylist(), lanes))

@@ -1,15 +1,18 @@
 """``lanelab-eval``: the OpenLane metric over prediction files, or over a trained model on a
 clip store, printed and written as the papers' tables, with pictures of a few frames.
 
-    lanelab-eval gt=DIR pred=DIR test_list=FILE out=DIR [long_range=true] [scenario_lists=DIR] [images=DIR]
-    lanelab-eval checkpoint=FILE store=DIR [split=test] out=DIR [accelerator=cpu]
+    lanelab-eval gt=DIR pred=DIR test_list=FILE out=DIR [long_range=true] [scenario_lists=DIR] [images=DIR] [prior_store=DIR]
+    lanelab-eval checkpoint=FILE store=DIR [split=test] out=DIR [accelerator=cpu] [blind_prior=false] [prior_store=DIR]
 
 Options are Hydra overrides of ``conf/eval.yaml``. Writes ``<out>/report.json``,
 ``<out>/report.md`` and ``<out>/pictures.png``; a checkpoint's predictions, with the store's
 ground truth as OpenLane JSON, go to ``<out>/predictions`` and ``<out>/ground_truth``
 (:func:`lanelab.experiment.evaluate.evaluate_checkpoint`: the model, its metric settings and
 the data pipeline are rebuilt from the run config inside the checkpoint; scenarios come from
-the store's tags). Exits with status 1 on a malformed or missing input file (the message
+the store's tags). Beside the scores, the report shows the blind prior's, scored on the same
+frames (:mod:`lanelab.evaluation.blind_prior`): from the train split of ``prior_store``, for
+a checkpoint by default the store it was trained on; for prediction files only when
+``prior_store`` is given. Exits with status 1 on a malformed or missing input file (the message
 names it) and 2 on a bad option.
 """
 
@@ -46,6 +49,7 @@ def run(cfg: EvalConfig) -> list[Path]:
     Raises LaneFileError (naming the file) for a malformed or missing input.
     """
     # Heavy imports (torch, via the pictures) only once the options are good.
+    from lanelab.evaluation.blind_prior import blind_prior_reference
     from lanelab.evaluation.pictures import (
         draw_pictures,
         pick_frames,
@@ -58,7 +62,8 @@ def run(cfg: EvalConfig) -> list[Path]:
     if cfg.checkpoint is not None:
         from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here
 
-        options = {"num_pictures": cfg.pictures.num_frames, "picture_height": cfg.pictures.height}
+        options = {"num_pictures": cfg.pictures.num_frames, "picture_height": cfg.pictures.height,
+                   "blind_prior": cfg.blind_prior, "prior_store": cfg.prior_store}  # fmt: skip
         evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, cfg.split, cfg.accelerator, **options)
         written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
         return [path for path in written if path.exists()]  # no pictures when num_frames=0
@@ -68,7 +73,10 @@ def run(cfg: EvalConfig) -> list[Path]:
     if cfg.scenario_lists is not None:
         scenarios = scenarios_of(read_scenario_lists(cfg.scenario_lists), (name for name, _ in results))
     inputs = {"gt": cfg.gt, "pred": cfg.pred, "test list": cfg.test_list}
-    report = build_report(results, config, scenarios, inputs)
+    reference = None
+    if cfg.blind_prior and cfg.prior_store is not None:
+        reference = blind_prior_reference([cfg.prior_store], cfg.gt, cfg.test_list, config, scenarios)
+    report = build_report(results, config, scenarios, inputs, reference=reference)
     print(to_text(report))
     written = write_report(report, cfg.out)
 

@@ -36,6 +36,8 @@ class EvalConfig:
     long_range: bool = MISSING
     scenario_lists: Optional[str] = None
     images: Optional[str] = None
+    blind_prior: bool = MISSING
+    prior_store: Optional[str] = None
     pictures: PicturesConfig = field(default_factory=PicturesConfig)
 
 
@@ -66,6 +68,7 @@ def validate(cfg: EvalConfig) -> EvalConfig:
     check_existing("test_list", cfg.test_list, "file")
     check_existing("scenario_lists", cfg.scenario_lists, "folder")
     check_existing("images", cfg.images, "folder")
+    check_existing("prior_store", cfg.prior_store, "folder")
     if cfg.pictures.num_frames < 0:
         raise ConfigError(f"pictures.num_frames={cfg.pictures.num_frames} must be >= 0")
     if cfg.pictures.height < MIN_PICTURE_HEIGHT:

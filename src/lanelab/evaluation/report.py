@@ -12,6 +12,12 @@ Three tables:
    unweighted mean over the scenarios (SparseLaneSTP's Table 4, Bi²Lane's Table II).
 3. **Per scenario**: every metric of each scenario.
 
+A report may carry a **reference** scored on the same frames and ground truth: the blind prior
+(:mod:`lanelab.evaluation.blind_prior`, a prediction that looks at no image). It gets a row
+in the first two tables, beside the evaluated predictions, and a section of its own (what it
+is, where it comes from, or why it could not be computed); the JSON holds it under
+``blind_prior``.
+
 Fractions are printed in percent, errors in metres; the JSON keeps the metric's own keys
 and units (fractions in [0, 1]) and writes a value no pair had (NaN) as null.
 """
@@ -32,7 +38,26 @@ from lanelab.metrics.scenarios import Scenario, markdown_table, mean_f1, scenari
 REPORT_JSON = "report.json"
 REPORT_MARKDOWN = "report.md"
 PICTURES_PNG = "pictures.png"  # the pictures beside the report (lanelab.evaluation.pictures)
+REFERENCE_KEY = "blind_prior"  # report.json's key of the reference (lanelab.evaluation.blind_prior)
 _SCORES = ("f1", "precision", "recall", "category_accuracy")
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A reference prediction scored on the report's frames (the blind prior).
+
+    name: its row label. description: one line, what it is and where it comes from, or why
+    it could not be computed. overall / scenarios: as in :class:`Report`; overall is None
+    when it could not be computed. details: JSON-ready facts about it (its lanes, its
+    source). details_table: a Markdown table of them ("" for none).
+    """
+
+    name: str
+    description: str
+    overall: dict[str, float | int] | None
+    scenarios: list[dict[str, str | int | float]]
+    details: dict[str, Any]
+    details_table: str = ""
 
 
 @dataclass(frozen=True)
@@ -42,12 +67,16 @@ class Report:
     overall: :func:`~lanelab.metrics.openlane.summarize` over every frame. scenarios: one
     :func:`~lanelab.metrics.scenarios.scenario_rows` row per scenario (group, scenario and
     the same keys). inputs: where the numbers come from (name -> path), for the header.
+    name: the row label of the evaluated predictions beside a reference ("model", ...).
+    reference: the blind prior on the same frames, or None (not asked for).
     """
 
     config: OpenLaneConfig
     overall: dict[str, float | int]
     scenarios: list[dict[str, str | int | float]]
     inputs: dict[str, str]
+    name: str = "predictions"
+    reference: Reference | None = None
 
 
 def build_report(
@@ -55,10 +84,30 @@ def build_report(
     config: OpenLaneConfig,
     scenarios: Sequence[Scenario] = (),
     inputs: Mapping[str, str] | None = None,
+    name: str = "predictions",
+    reference: Reference | None = None,
 ) -> Report:
-    """The report of frame results ((frame id, result), as evaluate_frames returns them)."""
+    """The report of frame results ((frame id, result), as evaluate_frames returns them),
+    with a reference scored on the same frames if given (:func:`build_reference`)."""
     overall = summarize(result for _, result in results)
-    return Report(config, overall, scenario_rows(dict(results), scenarios), dict(inputs or {}))
+    return Report(config, overall, scenario_rows(dict(results), scenarios), dict(inputs or {}), name, reference)
+
+
+def build_reference(
+    name: str,
+    description: str,
+    results: Sequence[tuple[str, FrameResult]] | None,
+    scenarios: Sequence[Scenario] = (),
+    details: Mapping[str, Any] | None = None,
+    details_table: str = "",
+) -> Reference:
+    """A reference from its frame results on the report's frames, scored and grouped as the
+    report's own (results None: it could not be computed, description says why)."""
+    if results is None:
+        return Reference(name, description, None, [], dict(details or {}), details_table)
+    overall = summarize(result for _, result in results)
+    return Reference(name, description, overall, scenario_rows(dict(results), scenarios), dict(details or {}),
+                     details_table)  # fmt: skip
 
 
 def to_markdown(report: Report) -> str:
@@ -66,6 +115,10 @@ def to_markdown(report: Report) -> str:
     parts = ["# Evaluation report", "", *[f"- {line}" for line in _header(report)], ""]
     for title, table in _tables(report):
         parts += [f"## {title}", "", table]
+    section = _reference_section(report)
+    if section is not None:
+        title, description, table = section
+        parts += [f"## {title}", "", description, ""] + ([table] if table else [])
     return "\n".join(parts)
 
 
@@ -74,19 +127,33 @@ def to_text(report: Report) -> str:
     parts = [*_header(report), ""]
     for title, table in _tables(report):
         parts += [title, "-" * len(title), _aligned(table), ""]
+    section = _reference_section(report)
+    if section is not None:
+        title, description, table = section
+        parts += [title, "-" * len(title), description] + ([_aligned(table)] if table else []) + [""]
     return "\n".join(parts)
 
 
 def to_json(report: Report) -> dict[str, Any]:
     """The report as JSON-ready data: metric options, inputs, overall, scenarios, and each
     group's mean scenario F1. NaN becomes None."""
-    return _without_nan({
+    data = {
         "metric": asdict(report.config),
         "inputs": report.inputs,
         "overall": report.overall,
         "scenarios": report.scenarios,
-        "mean_scenario_f1": {group: mean_f1(rows) for group, rows in _groups(report).items()},
-    })
+        "mean_scenario_f1": {group: mean_f1(rows) for group, rows in _groups(report.scenarios).items()},
+    }
+    reference = report.reference
+    if reference is not None:
+        data[REFERENCE_KEY] = {"name": reference.name, "description": reference.description, **reference.details}
+        if reference.overall is not None:
+            data[REFERENCE_KEY].update({
+                "overall": reference.overall,
+                "scenarios": reference.scenarios,
+                "mean_scenario_f1": {group: mean_f1(rows) for group, rows in _groups(reference.scenarios).items()},
+            })  # fmt: skip
+    return _without_nan(data)
 
 
 def write_report(report: Report, out_dir: str | os.PathLike[str]) -> list[Path]:
@@ -115,17 +182,39 @@ def _header(report: Report) -> list[str]:
 
 
 def _tables(report: Report) -> list[tuple[str, str]]:
-    """(title, Markdown table) of each table of the report."""
+    """(title, Markdown table) of each table of the report. With a scored reference, the
+    overall and scenario-F1 tables get a first column naming the row (the predictions, the
+    reference)."""
     names = _display_names(report.config)
     metrics = [*_SCORES, *[names.get(n, n) for n in report.config.pair_value_names]]
-    overall = _renamed(report.overall, names)
-    tables = [("Overall", markdown_table([overall], ["num_frames", *metrics]))]
-    for group, rows in _groups(report).items():
-        tables.append((f"{group} scenarios: F1 (%)", _f1_row(report.overall["f1"], rows)))
+    reference = report.reference
+    scored = reference is not None and reference.overall is not None
+    if scored:
+        rows = [{"predictions": report.name, **_renamed(report.overall, names)},
+                {"predictions": reference.name, **_renamed(reference.overall, names)}]  # fmt: skip
+        tables = [("Overall", markdown_table(rows, ["predictions", "num_frames", *metrics]))]
+    else:
+        tables = [("Overall", markdown_table([_renamed(report.overall, names)], ["num_frames", *metrics]))]
+    reference_groups = _groups(reference.scenarios) if scored else {}
+    for group, rows in _groups(report.scenarios).items():
+        if scored:
+            labelled = [(report.name, report.overall["f1"], rows),
+                        (reference.name, reference.overall["f1"], reference_groups.get(group, []))]  # fmt: skip
+            tables.append((f"{group} scenarios: F1 (%)", _f1_rows(labelled)))
+        else:
+            tables.append((f"{group} scenarios: F1 (%)", _f1_row(report.overall["f1"], rows)))
     if report.scenarios:
         rows = [_renamed(row, names) for row in report.scenarios]
         tables.append(("Per scenario", markdown_table(rows, ["group", "scenario", "num_frames", *metrics])))
     return tables
+
+
+def _reference_section(report: Report) -> tuple[str, str, str] | None:
+    """(title, description, Markdown table or "") of the report's reference, if it has one."""
+    reference = report.reference
+    if reference is None:
+        return None
+    return reference.name[:1].upper() + reference.name[1:], reference.description, reference.details_table
 
 
 def _display_names(config: OpenLaneConfig) -> dict[str, str]:
@@ -140,10 +229,10 @@ def _renamed(row: Mapping[str, Any], names: Mapping[str, str]) -> dict[str, Any]
     return {names.get(key, key): value for key, value in row.items()}
 
 
-def _groups(report: Report) -> dict[str, list[dict[str, str | int | float]]]:
+def _groups(scenarios: Sequence[dict[str, str | int | float]]) -> dict[str, list[dict[str, str | int | float]]]:
     """Scenario rows by group, groups in order of appearance."""
     groups: dict[str, list[dict[str, str | int | float]]] = {}
-    for row in report.scenarios:
+    for row in scenarios:
         groups.setdefault(str(row["group"]), []).append(row)
     return groups
 
@@ -158,6 +247,20 @@ def _f1_row(all_f1: float, rows: Sequence[Mapping[str, Any]]) -> str:
         "|" + "|".join(["---:"] * len(header)) + "|",
         "| " + " | ".join(cells) + " |",
     ]) + "\n"
+
+
+def _f1_rows(rows: Sequence[tuple[str, float, Sequence[Mapping[str, Any]]]]) -> str:
+    """A Markdown table: a column naming each row, then All | each scenario | Mean, F1 in
+    percent; rows are (name, F1 over all frames, scenario rows), the first row's scenarios
+    name the columns."""
+    scenarios = [str(row["scenario"]) for row in rows[0][2]]
+    header = ["Predictions", "All", *scenarios, "Mean"]
+    lines = ["| " + " | ".join(header) + " |", "|---|" + "|".join(["---:"] * (len(header) - 1)) + "|"]
+    for name, all_f1, scenario_rows_ in rows:
+        by_name = {str(row["scenario"]): float(row["f1"]) for row in scenario_rows_}
+        values = [all_f1, *[by_name.get(s, math.nan) for s in scenarios], mean_f1(scenario_rows_)]
+        lines.append("| " + " | ".join([name, *["–" if math.isnan(v) else f"{100 * v:.1f}" for v in values]]) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def _aligned(markdown: str) -> str:

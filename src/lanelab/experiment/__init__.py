@@ -8,3 +8,4 @@ the evaluation report after training, and ``lanelab-sweep-report`` over multirun
 """
 
 METRICS_JSON = "metrics.json"  # every run folder's final metrics, written by train, read by sweep_report
+BLIND_PRIOR_PREFIX = "blind_prior/"  # metrics.json keys of the blind prior's scores (lanelab.evaluation.blind_prior)

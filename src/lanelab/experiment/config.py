@@ -43,6 +43,8 @@ class EvaluationConfig:
     out: str = MISSING
     num_pictures: int = MISSING
     picture_height: int = MISSING
+    blind_prior: bool = MISSING
+    prior_store: str | None = None
 
 
 @dataclass

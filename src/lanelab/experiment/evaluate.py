@@ -8,13 +8,17 @@ DDP). Then, on rank zero, the pieces of ``lanelab-eval`` score the files
 (:func:`~lanelab.metrics.openlane.evaluate_frames` with the model's metric settings), group
 the frames by the store's scenario tags (weather, occlusion, curvature, ...;
 :func:`~lanelab.metrics.scenarios.tag_scenarios`), write ``report.md`` / ``report.json`` and
-draw ``pictures.png`` on the store's camera images. Layout of ``out``::
+draw ``pictures.png`` on the store's camera images. Beside the model, the report shows the
+blind prior (:mod:`lanelab.evaluation.blind_prior`: the training split's mean lane layout,
+no image) scored on the same ground-truth files, unless ``blind_prior`` is false. Layout of
+``out``::
 
     predictions/  ground_truth/  test_list.txt  report.md  report.json  pictures.png
 
 :func:`evaluate_checkpoint` does the same from a checkpoint file alone (``lanelab-eval
 checkpoint=... store=...``): lanelab-train writes the run's resolved config into every
-checkpoint, so the model, its metric settings and the data pipeline are rebuilt as trained.
+checkpoint, so the model, its metric settings and the data pipeline are rebuilt as trained;
+its blind prior comes from the store the checkpoint was trained on.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from lanelab.config_checks import ConfigError
 from lanelab.data.clip_store import ClipStore
 from lanelab.data.datamodule import ClipDataModule
 from lanelab.data.image_codec import decode_image
+from lanelab.evaluation.blind_prior import blind_prior_reference
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, Report, build_report, to_text, write_report
 from lanelab.experiment.config import validate
@@ -56,7 +61,9 @@ def evaluate(
     """Predict, score, write the report and pictures under options.out (see the module).
 
     ckpt_path: the weights (None: those in memory). options: ``out``, ``num_pictures``,
-    ``picture_height`` (conf/train.yaml ``evaluation``). Returns the report on rank zero.
+    ``picture_height``, ``blind_prior``, ``prior_store`` (conf/train.yaml ``evaluation``).
+    The blind prior comes from the train split of ``prior_store``, else (null, or no prior
+    there) of the datamodule's store. Returns the report on rank zero.
     """
     out = Path(options.out)
     writer = OpenLaneWriter(out, write_ground_truth=True)
@@ -72,7 +79,12 @@ def evaluate(
     store = ClipStore(datamodule.store)
     tags = frame_tags(store, {_clip_id(frame) for frame, _ in results})
     scenarios = tag_scenarios({frame: tags.get(frame, {}) for frame, _ in results}, SCENARIO_GROUPS)
-    report = build_report(results, module.metric_config, scenarios, {"store": str(datamodule.store), "out": str(out)})
+    reference = None
+    if options.get("blind_prior", True):
+        stores = [store for store in (options.get("prior_store"), datamodule.store) if store]
+        reference = blind_prior_reference(stores, out / GROUND_TRUTH, out / TEST_LIST, module.metric_config, scenarios)
+    inputs = {"store": str(datamodule.store), "out": str(out)}
+    report = build_report(results, module.metric_config, scenarios, inputs, name="model", reference=reference)
     print(to_text(report))
     written = write_report(report, out)
 
@@ -93,16 +105,26 @@ def evaluate_checkpoint(
     accelerator: str = "auto",
     num_pictures: int = 4,
     picture_height: int = 360,
+    blind_prior: bool = True,
+    prior_store: str | Path | None = None,
 ) -> dict:
     """Score a lanelab-train checkpoint on one split of a clip store, on one device: the
     predictions, report and pictures of :func:`evaluate` under ``out``. Returns report.json's
-    content. Raises ConfigError naming the checkpoint when it holds no lanelab run config."""
+    content. Raises ConfigError naming the checkpoint when it holds no lanelab run config.
+
+    The blind prior (unless blind_prior is False) comes from the train split of prior_store,
+    by default the store the checkpoint was trained on (its run config's ``data.store``),
+    else from the evaluated store's own train split; the report says why when neither has one.
+    """
     cfg = OmegaConf.create(run_config(checkpoint))
+    trained_on = OmegaConf.select(cfg, "data.store")
     cfg.merge_with({
         "train": False, "test": False, "ckpt_path": str(checkpoint), "logger": None,
         "data": {"store": str(store), "splits": {"predict": split}},
         "paths": {"output_dir": str(out)},
-        "evaluation": {"enabled": True, "out": str(out), "num_pictures": num_pictures, "picture_height": picture_height},
+        "evaluation": {"enabled": True, "out": str(out), "num_pictures": num_pictures, "picture_height": picture_height,
+                       "blind_prior": blind_prior,
+                       "prior_store": None if prior_store is None and trained_on is None else str(prior_store or trained_on)},
         "trainer": {"accelerator": accelerator, "devices": 1, "num_nodes": 1, "strategy": "auto"},
     })  # fmt: skip
     train(validate(cfg))

@@ -12,6 +12,15 @@ between jobs (the swept keys), and writes into the multirun folder (or ``--out``
 - ``sweep_report.csv``: the same numbers, unrounded (fractions in [0, 1], errors in metres);
 - ``sweep_f1.png``: F1 against the swept value (matplotlib if installed, else OpenCV).
 
+When the jobs ran their evaluation (``evaluation.enabled=true``), ``metrics.json`` also holds
+the blind prior's scores (``blind_prior/<metric>``: the training split's mean lane layout,
+straight and flat, no image, scored on the evaluated split; :mod:`lanelab.evaluation.blind_prior`).
+If the jobs share a training store (``data.store`` of ``<job>/.hydra/config.yaml``) and so
+the same prior, the Markdown table ends with a "blind prior" row and the plot draws its F1 as
+a dashed line: the score a model must beat to have learnt anything from the images. A line
+under the table says which split the prior was scored on, or why there is no such row. The
+CSV holds the jobs alone (the prior's unrounded numbers are in each job's ``metrics.json``).
+
 Jobs without ``metrics.json`` (failed or still running) are listed and left out.
 """
 
@@ -30,11 +39,12 @@ import numpy as np
 import yaml
 
 from lanelab.atomic_file import atomic_output
-from lanelab.experiment import METRICS_JSON
+from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
 from lanelab.metrics.scenarios import markdown_table
 
 REPORT_MD, REPORT_CSV, PLOT_PNG = "sweep_report.md", "sweep_report.csv", "sweep_f1.png"
 _SCORES = ("f1", "precision", "recall")
+BLIND_PRIOR_ROW = "blind prior"  # the reference row's label (lanelab.evaluation.blind_prior.NAME)
 
 
 @dataclass(frozen=True)
@@ -44,6 +54,14 @@ class Job:
     folder: Path
     overrides: dict[str, str]
     metrics: dict[str, float | None]
+
+    def config_value(self, key: str) -> object:
+        """A dotted key of the job's composed config (``.hydra/config.yaml``); None if absent."""
+        path = self.folder / ".hydra" / "config.yaml"
+        node: object = yaml.safe_load(path.read_text()) if path.is_file() else None
+        for part in key.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        return node
 
 
 def read_jobs(multirun: Path) -> tuple[list[Job], list[Path]]:
@@ -85,6 +103,32 @@ def table_rows(jobs: list[Job], keys: list[str]) -> tuple[list[dict[str, object]
     return rows, columns
 
 
+def blind_prior_row(jobs: list[Job], keys: list[str], columns: list[str]) -> tuple[dict[str, object] | None, str]:
+    """The blind prior's table row (its label in the first key's column), when the jobs
+    share a training store and their metrics.json hold the same blind prior, and the line
+    that says where it was scored, or why there is no row."""
+    with_prior = [job for job in jobs if any(key.startswith(BLIND_PRIOR_PREFIX) for key in job.metrics)]
+    if not with_prior:
+        return None, (f"No {BLIND_PRIOR_ROW} row: the jobs' {METRICS_JSON} hold none "
+                      "(run them with evaluation.enabled=true to score it).")  # fmt: skip
+    stores = {str(job.config_value("data.store")) for job in jobs}
+    if len(stores) > 1:
+        return None, f"No {BLIND_PRIOR_ROW} row: the jobs train on different stores ({', '.join(sorted(stores))})."
+    values = [{name: job.metrics.get(BLIND_PRIOR_PREFIX + name) for name in columns} for job in with_prior]
+    if any(other != values[0] for other in values[1:]):
+        return None, (f"No {BLIND_PRIOR_ROW} row: the jobs scored different blind priors "
+                      "(different evaluated splits or metric settings); see each job's eval/report.md.")  # fmt: skip
+    row: dict[str, object] = {key: "" for key in keys}
+    row[keys[0]] = BLIND_PRIOR_ROW
+    row.update({name: float("nan") if value is None else float(value) for name, value in values[0].items()})
+    split = with_prior[0].config_value("data.splits.predict")
+    note = (f"{BLIND_PRIOR_ROW}: the mean lane layout of the train split of {stores.pop()}, straight and flat, "
+            f"predicted without looking at the images, scored on the {split} split by the jobs' evaluation.")
+    if not any(key.startswith("test/") for job in jobs for key in job.metrics):  # table_rows shows val/ then
+        note += f" The jobs' rows are validation metrics (the {with_prior[0].config_value('data.splits.val')} split)."
+    return row, note
+
+
 def write_report(multirun: Path, out: Path) -> list[Path]:
     """Write the table, the CSV and the plot for a multirun folder; their paths."""
     jobs, unfinished = read_jobs(multirun)
@@ -96,9 +140,11 @@ def write_report(multirun: Path, out: Path) -> list[Path]:
     if keys == ["job"]:
         jobs = [Job(job.folder, {"job": job.folder.name}, job.metrics) for job in jobs]
     rows, columns = table_rows(jobs, keys)
+    prior, note = blind_prior_row(jobs, keys, columns)
     out.mkdir(parents=True, exist_ok=True)
 
-    markdown = f"# Sweep {multirun}\n\n" + markdown_table(rows, [*keys, *columns])
+    markdown = f"# Sweep {multirun}\n\n" + markdown_table(rows + ([prior] if prior else []), [*keys, *columns])
+    markdown += f"\n{note}\n"
     with atomic_output(out / REPORT_MD) as tmp:
         tmp.write_text(markdown)
     with atomic_output(out / REPORT_CSV) as tmp, tmp.open("w", newline="") as f:
@@ -107,25 +153,32 @@ def write_report(multirun: Path, out: Path) -> list[Path]:
         writer.writerows(rows)
     labels = [", ".join(str(row[key]) for key in keys) for row in rows]
     f1 = [100 * float(row["f1"]) for row in rows] if "f1" in columns else [float("nan")] * len(rows)
-    plot_f1(out / PLOT_PNG, " / ".join(keys), labels, f1)
+    prior_f1 = 100 * float(prior["f1"]) if prior is not None and "f1" in columns else None
+    plot_f1(out / PLOT_PNG, " / ".join(keys), labels, f1, prior_f1)
     print(markdown)
     return [out / REPORT_MD, out / REPORT_CSV, out / PLOT_PNG]
 
 
-def plot_f1(path: Path, x_name: str, labels: list[str], f1: list[float]) -> None:
-    """F1 (%) against the swept values: a line over numbers, points over names."""
+def plot_f1(path: Path, x_name: str, labels: list[str], f1: list[float], prior_f1: float | None = None) -> None:
+    """F1 (%) against the swept values: a line over numbers, points over names; the blind
+    prior's F1 (%), if given, as a dashed horizontal line."""
     numeric = all(_is_number(label) for label in labels)
     x = [float(label) for label in labels] if numeric else list(range(len(labels)))
+    if prior_f1 is not None and not math.isfinite(prior_f1):
+        prior_f1 = None
     try:
         import matplotlib
     except ImportError:
-        _plot_with_opencv(path, x_name, labels, x, f1)
+        _plot_with_opencv(path, x_name, labels, x, f1, prior_f1)
         return
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(figsize=(6, 4), dpi=100)
-    axes.plot(x, f1, "o-" if numeric else "o")
+    axes.plot(x, f1, "o-" if numeric else "o", label="jobs")
+    if prior_f1 is not None:
+        axes.axhline(prior_f1, color="grey", linestyle="--", label=BLIND_PRIOR_ROW)
+        axes.legend()
     axes.set_xticks(x, labels)
     axes.set(xlabel=x_name, ylabel="F1 (%)", title="F1 against " + x_name)
     axes.grid(alpha=0.3)
@@ -135,11 +188,14 @@ def plot_f1(path: Path, x_name: str, labels: list[str], f1: list[float]) -> None
     plt.close(figure)
 
 
-def _plot_with_opencv(path: Path, x_name: str, labels: list[str], x: list[float], f1: list[float]) -> None:
+def _plot_with_opencv(
+    path: Path, x_name: str, labels: list[str], x: list[float], f1: list[float], prior_f1: float | None = None
+) -> None:
     width, height, margin = 600, 400, 60
     canvas = np.full((height, width, 3), 255, np.uint8)
     black, grey, blue = (0, 0, 0), (200, 200, 200), (180, 110, 30)
-    finite = [v for v in f1 if math.isfinite(v)] or [0.0]
+    finite = [v for v in f1 if math.isfinite(v)] + ([prior_f1] if prior_f1 is not None else [])
+    finite = finite or [0.0]
     y_low, y_high = max(min(finite) - 1.0, 0.0), max(finite) + 1.0
     x_low, x_high = min(x), max(x) if max(x) > min(x) else min(x) + 1.0
 
@@ -152,6 +208,11 @@ def _plot_with_opencv(path: Path, x_name: str, labels: list[str], x: list[float]
         u, v = pixel(x_low, yv)
         cv2.line(canvas, (margin, v), (width - margin, v), grey, 1)
         cv2.putText(canvas, f"{yv:.1f}", (5, v + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1, cv2.LINE_AA)
+    if prior_f1 is not None:  # dashed
+        _, v = pixel(x_low, prior_f1)
+        for u in range(margin, width - margin, 12):
+            cv2.line(canvas, (u, v), (min(u + 6, width - margin), v), (90, 90, 90), 1)
+        cv2.putText(canvas, BLIND_PRIOR_ROW, (width - margin - 80, v - 5), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1)
     points = [pixel(xv, yv) for xv, yv in zip(x, f1) if math.isfinite(yv)]
     if len(points) > 1 and all(_is_number(label) for label in labels):
         cv2.polylines(canvas, [np.array(points, np.int32)], False, blue, 2, cv2.LINE_AA)

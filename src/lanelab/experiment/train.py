@@ -7,7 +7,8 @@ Builds the datamodule, the LightningModule, the callbacks, the loggers and the T
 the config (Hydra instantiates; nothing here holds a default), then fits, tests and
 evaluates as ``train``, ``test`` and ``evaluation.enabled`` say. The run folder holds the
 config (``.hydra/``), the checkpoints, the logs, ``metrics.json`` (the last value of every
-logged metric, what ``lanelab-sweep-report`` reads) and the evaluation report.
+logged metric, what ``lanelab-sweep-report`` reads; with the evaluation, also the blind
+prior's scores on the evaluated split as ``blind_prior/<metric>``) and the evaluation report.
 Exits with status 2 on a bad option, naming the key.
 """
 
@@ -28,7 +29,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from lanelab.atomic_file import atomic_output
 from lanelab.config_checks import ConfigError, register_schema
-from lanelab.experiment import METRICS_JSON
+from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
 
 CONFIG_KEY = "lanelab_config"
@@ -64,7 +65,10 @@ and testing (also written to ``metrics.json``)."""
     if cfg.evaluation.enabled:
         from lanelab.experiment.evaluate import evaluate  # the report's imports only when asked for
 
-        evaluate(trainer, module, datamodule, weights, cfg.evaluation)
+        report = evaluate(trainer, module, datamodule, weights, cfg.evaluation)
+        if metrics and report is not None and report.reference is not None and report.reference.overall is not None:
+            # The blind prior's scores on the evaluated split, the reference row of lanelab-sweep-report.
+            metrics.update({f"{BLIND_PRIOR_PREFIX}{key}": float(value) for key, value in report.reference.overall.items()})
 
     for logger in loggers:
         if isinstance(logger, WandbLogger):

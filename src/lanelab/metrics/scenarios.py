@@ -100,9 +100,11 @@ def mean_f1(rows: Sequence[Mapping[str, str | int | float]]) -> float:
     return sum(float(row["f1"]) for row in rows) / len(rows) if rows else float("nan")
 
 
+_TEXT_COLUMNS = ("predictions", "group", "scenario")  # left-aligned
 # Fractions shown in percent, as the papers print them.
 _PERCENT = {"f1", "recall", "precision", "category_accuracy", "vis_iou"}
 _LABELS = {
+    "predictions": "Predictions",  # a row's name where rows are several predictions (a model, the blind prior)
     "group": "Group",
     "scenario": "Scenario",
     "num_frames": "Frames",
@@ -120,7 +122,7 @@ def markdown_table(
 ) -> str:
     """A Markdown table of the rows' `columns`: fractions in percent with one decimal,
     errors (x_error_close, ...) in metres with three, NaN or a missing value as "–"."""
-    align = ["---" if column in ("group", "scenario") else "---:" for column in columns]
+    align = ["---" if column in _TEXT_COLUMNS else "---:" for column in columns]
     lines = ["| " + " | ".join(_label(column) for column in columns) + " |",
              "|" + "|".join(align) + "|"]
     for row in rows:
