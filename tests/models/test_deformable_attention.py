@@ -98,23 +98,26 @@ def test_multi_scale_levels_are_averaged_by_the_weights():
     torch.testing.assert_close(out[0], mean)
 
 
-def test_points_behind_the_camera_or_outside_the_image_read_nothing():
+def test_points_behind_the_camera_read_nothing_and_points_outside_read_the_border():
     attention = DeformableCrossAttention(C, HEADS, LEVELS, POINTS).double()
     nn.init.normal_(attention.sampling_offsets.weight)
     nn.init.normal_(attention.attention_weights.weight)
-    # A visible point, the same point mirrored behind the camera, one left of the image, one
-    # on the camera plane (projection at infinity).
+    # A visible point, the same point mirrored behind the camera, one on the camera plane
+    # (projection at infinity), one left of the image and the border point it clamps to.
     visible = lane_points([[50.0, 40.0]], [10.0])
     behind = visible.clone()
     behind[..., 1] = -behind[..., 1]
-    outside = lane_points([[-30.0, 40.0]], [10.0])
     on_plane = torch.tensor([[[1.0, 0.0, 1.0]]], dtype=torch.float64)
-    points = torch.cat([visible, behind, outside, on_plane], 1).requires_grad_(True)
-    queries = torch.randn(1, 4, C, dtype=torch.float64, requires_grad=True)
+    outside = lane_points([[-30.0, 40.0]], [10.0])
+    border = lane_points([[0.0, 40.0]], [25.0])
+    points = torch.cat([visible, behind, on_plane, outside, border], 1).requires_grad_(True)
+    query = torch.randn(1, 1, C, dtype=torch.float64)
+    queries = torch.cat([torch.randn(1, 3, C, dtype=torch.float64), query, query], 1).requires_grad_(True)
     out = run(attention, points, queries)
-    bias = attention.output_proj.bias.expand(3, C)
-    torch.testing.assert_close(out[0, 1:], bias)  # the projection of an all-zero read
+    torch.testing.assert_close(out[0, 1:3], attention.output_proj.bias.expand(2, C))  # an all-zero read
     assert not torch.allclose(out[0, 0], attention.output_proj.bias)
+    assert not torch.allclose(out[0, 3], attention.output_proj.bias)
+    torch.testing.assert_close(out[0, 3], out[0, 4])
     out.sum().backward()
     assert torch.isfinite(queries.grad).all() and torch.isfinite(points.grad).all()
 

@@ -140,7 +140,7 @@ def test_regression_loss_by_hand():
     points = torch.stack([gt_points[0, 0] + torch.tensor([1.0, 0.0, -0.5, 0.0]), lanes(torch.tensor(40.0))], 0)[None]
     logits = torch.zeros(1, 2, BACKGROUND_INDEX + 1)
     losses = criterion()({"layers": [{"control_points": points, "logits": logits}]}, targets)
-    assert losses["reg"].item() == pytest.approx(11 * 1.5 / 2)  # eq. 23: Σ over 11 samples, / N
+    assert losses["reg"].item() == pytest.approx(1.5)  # eq. 23: Σ over the 11 visible samples, / 11
 
 
 def test_orthogonal_correspondence_on_parallel_lines():

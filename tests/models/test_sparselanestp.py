@@ -15,7 +15,7 @@ TINY = dict(
     attention="sparse", use_sla=True, use_pna=True, use_tca=True, pna_neighbors=2, tca_neighbors=4,
     num_memory_frames=2, num_memory_lines=2,
     num_classes=NUM_LANE_CATEGORIES, x_range=(-10.0, 10.0), y_range=(3.0, 103.0), z_range=(-2.0, 3.0),
-    representation="catmull_rom", head_hidden_layers=2,
+    representation="catmull_rom", head_hidden_layers=2, ground_encoding=True,
 )  # fmt: skip
 BASELINE = {**TINY, "num_memory_frames": 0, "attention": "global", "representation": "discrete"}
 

@@ -6,9 +6,11 @@ query's 3D control point is re-projected into the image, and every head samples
 query predicts. Sampling is bilinear ``F.grid_sample``: one call per level for all queries,
 heads and points, so it runs as a handful of large kernels on a GPU.
 
-A query whose control point is behind the camera or projects outside the image gets zero
-weight on every sample (it reads nothing from the image); a sampling location that an
-offset pushes outside the image reads zeros (grid_sample's zero padding).
+A control point that projects outside the image is referenced at the nearest image border
+(lanes leave the image at its bottom and sides, and their nearest visible part is there);
+one behind the camera gets zero weight on every sample (it reads nothing from the image). A
+sampling location that an offset pushes outside the image reads zeros (grid_sample's zero
+padding).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from lanelab.geometry import in_image, project_lane_points
+from lanelab.geometry import project_lane_points
 
 
 class DeformableCrossAttention(nn.Module):
@@ -104,15 +106,14 @@ class DeformableCrossAttention(nn.Module):
     def _reference_points(
         points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tuple[int, int]
     ) -> tuple[Tensor, Tensor]:
-        """Project points (B, Q, 3) -> normalised image coordinates (B, Q, 2) in [0, 1] and a
-        (B, Q) mask of those in front of the camera and inside the image."""
+        """Project points (B, Q, 3) -> normalised image coordinates (B, Q, 2) in [0, 1], clamped
+        to the image, and a (B, Q) mask of those in front of the camera."""
         height, width = image_size
         # At least float32, even under bf16 autocast: pixel positions need more than 8 mantissa bits.
         dtype = torch.promote_types(points.dtype, torch.float32)
         with torch.autocast(points.device.type, enabled=False):
             uv, _, in_front = project_lane_points(points.to(dtype), K.to(dtype), T_lane_cam.to(dtype))
-        visible = in_front & in_image(uv, width, height)
         scale = torch.tensor([width, height], dtype=uv.dtype, device=uv.device)
-        # Invisible points get a harmless finite location; their weights are zero anyway.
-        reference = torch.where(visible[..., None], uv / scale, torch.full_like(uv, 0.5))
-        return reference.to(points.dtype), visible
+        # Points behind the camera get a harmless finite location; their weights are zero anyway.
+        reference = torch.where(in_front[..., None], uv / scale, torch.full_like(uv, 0.5)).clamp(0.0, 1.0)
+        return reference.to(points.dtype), in_front

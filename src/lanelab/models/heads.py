@@ -58,6 +58,16 @@ def mlp(in_dim: int, hidden_dim: int, out_dim: int, num_hidden: int) -> nn.Seque
     return nn.Sequential(*layers)
 
 
+def normalise_points(
+    points: Tensor, x_range: tuple[float, float], y_range: tuple[float, float], z_range: tuple[float, float]
+) -> Tensor:
+    """Points (..., 4) = (x, y, z, v) in metres -> x, y, z mapped by their (start, end) ranges
+    to [0, 1] (v as is): the input of the positional encodings."""
+    low = points.new_tensor([x_range[0], y_range[0], z_range[0], 0.0])
+    high = points.new_tensor([x_range[1], y_range[1], z_range[1], 1.0])
+    return (points - low) / (high - low)
+
+
 class LaneHead(nn.Module):
     """Control points and classes from queries, shared across decoder layers.
 
@@ -111,9 +121,7 @@ class LaneHead(nn.Module):
         """Points (..., 4) = (x, y, z, v) in metres -> each coordinate mapped by its range to
         [0, 1] (v as is), the input of the positional encoding. Propagated memory points may
         fall outside [0, 1]."""
-        low = points.new_tensor([self.x_range[0], self.y_range[0], self.z_range[0], 0.0])
-        high = points.new_tensor([self.x_range[1], self.y_range[1], self.z_range[1], 1.0])
-        return (points - low) / (high - low)
+        return normalise_points(points, self.x_range, self.y_range, self.z_range)
 
     def classify(self, queries: Tensor) -> Tensor:
         """queries (B, N, M, C) -> class logits (B, N, K + 1), background last."""

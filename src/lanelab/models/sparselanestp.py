@@ -35,6 +35,7 @@ from lanelab.models.backbone import ResNet
 from lanelab.models.decoder import DecoderLayer, LaneDecoder
 from lanelab.models.deformable_attention import DeformableCrossAttention
 from lanelab.models.fpn import FPN
+from lanelab.models.ground_encoding import GroundPositionalEncoding
 from lanelab.models.heads import LaneHead
 from lanelab.models.memory_queue import MemoryQueue
 from lanelab.models.positional_encoding import PointPositionalEncoding
@@ -69,6 +70,8 @@ class SparseLaneSTP(nn.Module):
     Memory: num_memory_frames T (0 disables temporal fusion), num_memory_lines N_mem.
     Heads: num_classes K (without background), x_range, y_range, z_range (metres),
     representation ("catmull_rom" or "discrete"), head_hidden_layers.
+    Image positions: ground_encoding adds LATR's 3D ground positional encoding to the image
+    features the cross-attention reads (models.ground_encoding).
     """
 
     def __init__(
@@ -101,6 +104,7 @@ class SparseLaneSTP(nn.Module):
         z_range: Sequence[float],
         representation: str,
         head_hidden_layers: int,
+        ground_encoding: bool,
     ) -> None:
         super().__init__()
         self.backbone = ResNet(backbone_depth, backbone_width, _BACKBONE_STAGES)
@@ -126,6 +130,9 @@ class SparseLaneSTP(nn.Module):
             for _ in range(num_layers)
         ]
         self.decoder = LaneDecoder(layers, head, PointPositionalEncoding(embed_dim))
+        self.ground_encoding = (
+            GroundPositionalEncoding(embed_dim, tuple(x_range), tuple(y_range), tuple(z_range)) if ground_encoding else None
+        )
         self.num_memory_frames, self.num_memory_lines = num_memory_frames, num_memory_lines
         self._stream = MemoryQueue(num_memory_frames, num_memory_lines)  # the streaming state
 
@@ -148,11 +155,11 @@ class SparseLaneSTP(nn.Module):
         images, valid = batch["images"], batch["valid"]
         B, F = images.shape[:2]
         if all_frames or F == 1:
-            encoded = self._encode(images)
+            encoded = self._encode(images, batch["K"], batch["T_lane_cam"])
         else:
             with torch.no_grad():
-                encoded = self._encode(images[:, :-1])
-            encoded += self._encode(images[:, -1:])
+                encoded = self._encode(images[:, :-1], batch["K"][:, :-1], batch["T_lane_cam"][:, :-1])
+            encoded += self._encode(images[:, -1:], batch["K"][:, -1:], batch["T_lane_cam"][:, -1:])
 
         memory = MemoryQueue(self.num_memory_frames, self.num_memory_lines)
         outputs = []
@@ -195,7 +202,7 @@ class SparseLaneSTP(nn.Module):
         if "reset" in frame:
             self.reset(frame["reset"])
         images = frame["images"]
-        (encoded,) = self._encode(images[:, None])
+        (encoded,) = self._encode(images[:, None], frame["K"][:, None], frame["T_lane_cam"][:, None])
         return self._decode(
             encoded, frame["K"], frame["T_lane_cam"], frame["T_world_lane"], tuple(images.shape[-2:]), self._stream
         )
@@ -207,10 +214,13 @@ class SparseLaneSTP(nn.Module):
         return self.head.decode(outputs["points"][-1], y)
 
     # ----------------------------------------------------------------- internals
-    def _encode(self, images: Tensor) -> list[_Encoded]:
-        """The per-frame work, batched over frames: images (B, F, 3, H, W) -> F encodings."""
+    def _encode(self, images: Tensor, K: Tensor, T_lane_cam: Tensor) -> list[_Encoded]:
+        """The per-frame work, batched over frames: images (B, F, 3, H, W) with their K
+        (B, F, 3, 3) and T_lane_cam (B, F, 4, 4) -> F encodings."""
         B, F = images.shape[:2]
         features = self.neck(self.backbone(images.flatten(0, 1)))
+        if self.ground_encoding is not None:  # before the query generator: its line embeddings pool positions too
+            features = self.ground_encoding(features, K.flatten(0, 1), T_lane_cam.flatten(0, 1), tuple(images.shape[-2:]))
         queries, logits, masks = self.query_generator(features[0])
         per_frame = [[level.unflatten(0, (B, F))[:, f] for level in features] for f in range(F)]
         queries, logits, masks = (t.unflatten(0, (B, F)) for t in (queries, logits, masks))

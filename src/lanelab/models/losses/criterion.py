@@ -95,8 +95,8 @@ class SparseLaneSTPLoss(nn.Module):
         gt_x, gt_z, gt_vis = (targets[key][batch, gt].to(curves) for key in ("gt_x", "gt_z", "gt_vis"))
         losses = {
             "cls": focal_loss(logits, target, self.gamma),
-            "reg": regression_loss(matched, gt_x, gt_z, gt_vis, B * N),
-            "vis": visibility_loss(matched, gt_vis, B * N),
+            "reg": regression_loss(matched, gt_x, gt_z, gt_vis, gt_vis.sum().clamp(min=1)),
+            "vis": visibility_loss(matched, gt_vis, max(gt_vis.numel(), 1)),
         }
         lines = torch.zeros(B, N, dtype=torch.bool, device=logits.device)
         lines[batch, pred] = True

@@ -1,8 +1,11 @@
 """Detection losses of SparseLaneSTP, supplementary B (eq. 22-24).
 
-Each is a sum over proposals (and, for eq. 23-24, over ground-truth samples) divided by the N
-proposals of an image, as the paper writes them, then averaged over the batch: pass
-``normaliser`` = B · N.
+The classification is a mean over the N proposals of every image (eq. 22). Eq. 23-24 are sums
+over the matched lines' ground-truth samples; the paper divides them by N, which makes their
+scale grow with the number and length of the lanes in a batch (a frame with eight long lanes
+weighs eight times one with a short one). As LATR does, they are divided by the count they sum
+over instead: ``normaliser`` = the visible samples for eq. 23, all samples for eq. 24, so both
+are per-sample means (metres, nats) whatever the batch holds.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ def focal_loss(logits: Tensor, target: Tensor, gamma: float) -> Tensor:
     return -((1 - log_p.exp()) ** gamma * log_p).mean()
 
 
-def regression_loss(curves: Tensor, gt_x: Tensor, gt_z: Tensor, gt_vis: Tensor, normaliser: int) -> Tensor:
+def regression_loss(curves: Tensor, gt_x: Tensor, gt_z: Tensor, gt_vis: Tensor, normaliser: int | Tensor) -> Tensor:
     """Eq. 23: Σ v̂ (|f_x(ŝ) - x̂| + |f_z(ŝ) - ẑ|) over matched lines and their ground-truth
     samples; curves (P, S, 4) the P matched predictions at the samples' curve arguments,
     gt_x, gt_z, gt_vis (P, S)."""
@@ -32,7 +35,7 @@ def regression_loss(curves: Tensor, gt_x: Tensor, gt_z: Tensor, gt_vis: Tensor, 
     return (distance * gt_vis).sum() / normaliser
 
 
-def visibility_loss(curves: Tensor, gt_vis: Tensor, normaliser: int) -> Tensor:
+def visibility_loss(curves: Tensor, gt_vis: Tensor, normaliser: int | Tensor) -> Tensor:
     """Eq. 24 (printed without the minus sign of a cross-entropy): binary cross-entropy of the
     predicted visibility f_v at every ground-truth sample of the matched lines, (P, S)."""
     probability = curves[..., 3].clamp(VISIBILITY_EPS, 1 - VISIBILITY_EPS)
