@@ -41,6 +41,7 @@ from lanelab.lightning.predictions import (
 )
 from lanelab.metrics.openlane import OpenLaneConfig
 from lanelab.metrics.openlane_metric import OpenLaneMetric
+from lanelab.models.backbone import load_torchvision_weights
 from lanelab.models.losses import InstanceMaskLoss, SparseLaneSTPLoss
 from lanelab.models.memory_queue import MemoryState
 from lanelab.models.sparselanestp import SparseLaneSTP
@@ -72,6 +73,9 @@ class SparseLaneSTPModule(pl.LightningModule):
     lr_multipliers {parameter-name key: factor} (e.g. backbone, sampling_offsets); a linear
     warm-up over warmup_steps, then a cosine to min_lr at the end of training.
     num_pictures: frames of the first validation batch drawn and logged each validation.
+    backbone: {"weights": PATH or None}: a torchvision-layout ResNet state dict (e.g. ImageNet
+    weights) loaded into the backbone when training starts; a resumed run's checkpoint, restored
+    after it, overrides it, and evaluation from a checkpoint never reads it.
     """
 
     def __init__(
@@ -88,6 +92,7 @@ class SparseLaneSTPModule(pl.LightningModule):
         warmup_steps: int,
         min_lr: float,
         num_pictures: int,
+        backbone: Mapping[str, Any] | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters(ignore=["net", "criterion", "mask_criterion"])
@@ -99,6 +104,11 @@ class SparseLaneSTPModule(pl.LightningModule):
         self.lr_multipliers = dict(lr_multipliers)
         self.warmup_steps, self.min_lr = warmup_steps, min_lr
         self.num_pictures = num_pictures
+        self.backbone_weights = (backbone or {}).get("weights")
+
+    def setup(self, stage: str) -> None:
+        if stage == "fit" and self.backbone_weights is not None:
+            load_torchvision_weights(self.net.backbone, self.backbone_weights)
 
     # ------------------------------------------------------------------ running
     def forward(self, batch: Mapping[str, Any]) -> dict[str, Any]:

@@ -9,6 +9,7 @@ subset chosen by ``out_stages``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import torch
 from torch import Tensor, nn
@@ -75,6 +76,7 @@ class ResNet(nn.Module):
         if not out_stages or not set(out_stages) <= {0, 1, 2, 3}:
             raise ValueError(f"out_stages must be a non-empty subset of 0..3, got {out_stages}")
         kind, blocks = _LAYOUTS[depth]
+        self.depth, self.base_width = depth, base_width
         block = BasicBlock if kind == "basic" else Bottleneck
         self.out_stages = tuple(sorted(out_stages))
 
@@ -113,3 +115,56 @@ class ResNet(nn.Module):
             if index == self.out_stages[-1]:
                 break
         return features
+
+
+def load_torchvision_weights(resnet: ResNet, path: str | Path) -> None:
+    """Load a ResNet state dict saved in torchvision's key layout (e.g. ImageNet weights the
+    user downloaded: ``torch.save(torchvision.models.resnet50(weights=...).state_dict(), path)``)
+    into ``resnet``. Nothing is downloaded.
+
+    torchvision -> lanelab: ``conv1`` / ``bn1`` -> ``stem.0.0`` / ``stem.0.1``;
+    ``layer{k}.{b}.conv{i}`` / ``bn{i}`` -> ``stages.{k-1}.{b}.conv{i}.0`` / ``.1``;
+    ``layer{k}.{b}.downsample.{0,1}`` -> ``stages.{k-1}.{b}.shortcut.{0,1}``; ``fc.*`` is ignored.
+    Every parameter and batch-norm buffer of ``resnet`` must come from the file with its shape
+    (so depth and width must match: torchvision's ResNets have base width 64); a ValueError
+    naming the file and the keys says what does not fit.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such backbone weights file")
+    try:
+        loaded = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # a truncated or foreign file: say which
+        raise ValueError(f"{path}: not a PyTorch state dict ({error})") from error
+    if isinstance(loaded, dict) and isinstance(loaded.get("state_dict"), dict):
+        loaded = loaded["state_dict"]
+    if not isinstance(loaded, dict):
+        raise ValueError(f"{path}: holds a {type(loaded).__name__}, not a state dict")
+    origin = {_lanelab_name(key): key for key in loaded if not key.startswith("fc.")}
+    renamed = {name: loaded[key] for name, key in origin.items()}
+    expected = resnet.state_dict()
+    missing = sorted(set(expected) - set(renamed))  # our names: the file lacks them
+    unexpected = sorted(origin[k] for k in set(renamed) - set(expected))  # the file's names
+    mismatched = sorted(origin[k] for k in set(expected) & set(renamed) if renamed[k].shape != expected[k].shape)
+    if missing or unexpected or mismatched:
+        problems = [f"{name}: {', '.join(keys[:5])}{' ...' if len(keys) > 5 else ''}"
+                    for name, keys in (("missing", missing), ("unexpected", unexpected), ("wrong shape", mismatched)) if keys]  # fmt: skip
+        raise ValueError(
+            f"{path}: not a torchvision ResNet-{resnet.depth} at base width {resnet.base_width} ({'; '.join(problems)})"
+        )
+    resnet.load_state_dict(renamed)
+
+
+def _lanelab_name(key: str) -> str:
+    """A torchvision ResNet state-dict key -> the same tensor's key in :class:`ResNet`."""
+    parts = key.split(".")
+    if parts[0] in ("conv1", "bn1"):
+        return ".".join(["stem", "0", "0" if parts[0] == "conv1" else "1", *parts[1:]])
+    if parts[0].startswith("layer") and len(parts) >= 4:
+        stage, block, module = int(parts[0][5:]) - 1, parts[1], parts[2]
+        if module == "downsample":
+            return ".".join(["stages", str(stage), block, "shortcut", *parts[3:]])
+        if module[:-1] in ("conv", "bn"):
+            inner = "0" if module.startswith("conv") else "1"
+            return ".".join(["stages", str(stage), block, f"conv{module[-1]}", inner, *parts[3:]])
+    return key  # left as it is: reported as unexpected
