@@ -47,14 +47,7 @@ def main(argv: list[str] | None = None) -> None:
     out = Path(demo.out)
     start = time.monotonic()
 
-    _step(start, "synthesizing drive logs")
-    _tool("lanelab-synth", f"output_dir={out / 'logs' / 'train'}", *demo.synth, *demo.train_logs)
-    for name, options in demo.test_logs.items():
-        _tool("lanelab-synth", f"output_dir={out / 'logs' / 'test' / name}", *demo.synth, *options)
-    _step(start, "ingesting them into clip stores")
-    train_store, test_store = out / "clips_train", out / "clips_test"
-    _tool("lanelab-ingest", f"input={out / 'logs' / 'train'}", f"output={train_store}", *demo.ingest_train)
-    _tool("lanelab-ingest", f"input={out / 'logs' / 'test'}", f"output={test_store}", *demo.ingest_test)
+    train_store, test_store = prepare_stores(demo, out, start)
 
     reports, steps = {}, {}
     for model in demo.models:
@@ -64,7 +57,7 @@ def main(argv: list[str] | None = None) -> None:
                                        f"paths.output_dir={run / 'train'}"]))  # fmt: skip
         steps[model] = int(fit["train/steps"])
         _step(start, f"evaluating {model} on the held-out drives (lanelab-eval checkpoint=... store=...)")
-        reports[model] = evaluate_checkpoint(_best_checkpoint(run / "train"), test_store, run / "heldout",
+        reports[model] = evaluate_checkpoint(best_checkpoint(run / "train"), test_store, run / "heldout",
                                              num_pictures=base.evaluation.num_pictures,
                                              picture_height=base.evaluation.picture_height)  # fmt: skip
 
@@ -74,6 +67,21 @@ def main(argv: list[str] | None = None) -> None:
     print(f"\nHeld-out drives ({', '.join(demo.test_logs)}), {_minutes(start)} in all:\n\n{table}")
     for model in demo.models:
         print(f"{model}: report and pictures in {out / model / 'heldout'}")
+
+
+def prepare_stores(demo: DictConfig, out: Path, start: float) -> tuple[Path, Path]:
+    """Synthesize the demo's training and held-out drives under ``out/logs`` and ingest them
+    into ``out/clips_train`` (train / val) and ``out/clips_test``; the two stores' paths.
+    ``start``: the monotonic time the progress lines count from."""
+    _step(start, "synthesizing drive logs")
+    _tool("lanelab-synth", f"output_dir={out / 'logs' / 'train'}", *demo.synth, *demo.train_logs)
+    for name, options in demo.test_logs.items():
+        _tool("lanelab-synth", f"output_dir={out / 'logs' / 'test' / name}", *demo.synth, *options)
+    _step(start, "ingesting them into clip stores")
+    train_store, test_store = out / "clips_train", out / "clips_test"
+    _tool("lanelab-ingest", f"input={out / 'logs' / 'train'}", f"output={train_store}", *demo.ingest_train)
+    _tool("lanelab-ingest", f"input={out / 'logs' / 'test'}", f"output={test_store}", *demo.ingest_test)
+    return train_store, test_store
 
 
 def comparison(reports: dict[str, dict[str, Any]], steps: dict[str, int], demo: DictConfig) -> str:
@@ -112,7 +120,7 @@ def _number(value: float | None, scale: float, digits: int) -> str:
     return "–" if value is None else f"{scale * value:.{digits}f}"  # None: no pair had a value
 
 
-def _best_checkpoint(run: Path) -> Path:
+def best_checkpoint(run: Path) -> Path:
     """The run's best checkpoint (the callback keeps one), else its last."""
     return next((run / "checkpoints").glob("epoch*.ckpt"), run / "checkpoints" / "last.ckpt")
 

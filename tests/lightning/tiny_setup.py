@@ -82,7 +82,7 @@ TINY_MODEL = [
     "model/backbone=tiny", "model.net.embed_dim=32", "model.net.num_lines=4", "model.net.num_points=6",
     "model.net.query_convs=1", "model.net.mask_dim=8", "model.net.num_layers=2", "model.net.ffn_dim=64",
     "model.net.dropout=0.0", "model.net.dca_levels=2", "model.net.dca_points=2", "model.net.tca_neighbors=4",
-    "model.net.num_memory_lines=2", "model.net.x_range=[-10.0,10.0]", "model.net.y_range=[3.0,60.0]",
+    "model.net.num_memory_lines=2", "model.net.x_range=[-10.0,10.0]", "model.net.anchor_span=5.25", "model.net.y_range=[3.0,60.0]",
     "model.net.z_range=[-2.0,2.0]", "model.num_pictures=2",
 ]  # fmt: skip
 

@@ -135,3 +135,33 @@ def test_batch_and_queries_are_independent():
         for q in range(3):
             alone = attention(queries[:, q : q + 1], points[:, q : q + 1], [f[b : b + 1] for f in features], K, T, (HEIGHT, WIDTH))
             torch.testing.assert_close(together[b, q], alone[0, 0])
+
+
+def test_content_weights_pick_the_sample_that_answers_the_query():
+    """One of the samples around a point reads a bright marking. With query-only weights the read
+    is linear in the features (a fixed blend: it cannot tell which sample saw the marking); with
+    content weights the sample whose value matches the query's probe takes the weight."""
+    torch.manual_seed(0)
+    K, T = camera()
+    point = lane_points([[44.0, 36.0]], [10.0])
+    features = [torch.zeros(1, C, HEIGHT // s, WIDTH // s, dtype=torch.float64) for s in STRIDES]
+    marking = [f.clone() for f in features]
+    marking[0][0, :, 4, 6] = 5.0  # the stride-8 cell under the point: cell (4, 5); one to its right
+    query = torch.randn(1, 1, C, dtype=torch.float64)
+
+    def read(attention: DeformableCrossAttention, maps: list[torch.Tensor]) -> torch.Tensor:
+        return attention(query, point, maps, K, T, (HEIGHT, WIDTH))[0, 0]
+
+    plain = DeformableCrossAttention(C, HEADS, LEVELS, POINTS).double()
+    torch.testing.assert_close(read(plain, [2 * m for m in marking]) - read(plain, features),
+                               2 * (read(plain, marking) - read(plain, features)))  # fmt: skip
+    content = DeformableCrossAttention(C, HEADS, LEVELS, POINTS, content_weights=True).double()
+    content.load_state_dict(plain.state_dict(), strict=False)  # the same projections, plus the probe
+    with torch.no_grad():  # the probe looks for the marking's value
+        content.content_proj.weight.zero_()
+        content.content_proj.bias.copy_(content.value_proj(torch.full((C,), 5.0, dtype=torch.float64)))
+    torch.testing.assert_close(read(content, features), read(plain, features))  # nothing to prefer
+    # Query-only weights give the marking's sample 1/6 of a head's weight (3 points x 2 levels,
+    # uniform at initialisation); content weights give it nearly all.
+    plain_gain = (read(plain, marking) - read(plain, features)).norm()
+    assert (read(content, marking) - read(content, features)).norm() > 4 * plain_gain

@@ -1,5 +1,6 @@
 import pytest
 import torch
+from torch import nn
 
 from lanelab.geometry import evaluate
 from lanelab.models.heads import (
@@ -22,6 +23,8 @@ def head(representation: str = "catmull_rom") -> LaneHead:
 
 def test_points_lie_in_the_configured_ranges_and_y_is_fixed_uniform():
     lane_head = head()
+    for branch in (lane_head.x_mlp, lane_head.z_mlp):  # zero at init (see the next test)
+        nn.init.normal_(branch[-1].weight)
     queries = 100 * torch.randn(3, 4, M, C)  # large, to push the sigmoids into saturation
     logits = lane_head.refine(queries, torch.zeros(3, 4, M, 3))
     points = lane_head.control_points(logits)
@@ -32,6 +35,12 @@ def test_points_lie_in_the_configured_ranges_and_y_is_fixed_uniform():
     assert 0 <= v.min() and v.max() <= 1
     assert (x.max() - x.min()) > 0.9 * (X_RANGE[1] - X_RANGE[0])  # saturating both ways
     assert torch.equal(y, torch.tensor([3.0, 23.0, 43.0, 63.0, 83.0, 103.0]).expand(3, 4, M))
+
+
+def test_refinement_starts_as_the_identity_on_x_and_z():
+    logits = torch.randn(3, 4, M, 3)
+    refined = head().refine(torch.randn(3, 4, M, C), logits)
+    torch.testing.assert_close(refined[..., :2], logits[..., :2])
 
 
 def test_zero_logits_give_the_middle_of_the_ranges_and_normalise_inverts_the_scaling():

@@ -1,5 +1,7 @@
 import math
 
+import pytest
+
 import torch
 
 from lanelab.geometry import control_point_y, evaluate
@@ -79,3 +81,30 @@ def test_pair_costs_by_hand():
     vis = (0.2 + 0.4 + 0.1) / 3
     assert cost.shape == (1, 1, 1)
     assert math.isclose(cost.item(), 2 * focal + 3 * reg + 5 * vis, rel_tol=1e-5)
+
+
+def test_matching_on_anchors_pairs_lanes_with_the_nearest_anchors_whatever_the_lines_predict():
+    """Lanes at x = -1.9, 1.6, 5.0 m near the car, the first bending away to -12 m beyond 30 m;
+    anchors every 3.5 m from -5.25. The lanes go to anchors 1, 2, 3, the nearest at near range
+    (over all samples the first lane would be nearer anchor 0), whatever the lines predict."""
+    S = 20
+    y = torch.linspace(3, 103, S)
+    x = torch.tensor([-1.9, 1.6, 5.0])[:, None].expand(3, S).clone()
+    x[0, y > 30] = -12.0
+    targets = {
+        "gt_y": y, "gt_x": x[None], "gt_z": torch.zeros(1, 3, S), "gt_vis": torch.ones(1, 3, S),
+        "gt_category": torch.full((1, 3), 2), "gt_mask": torch.ones(1, 3, dtype=torch.bool),
+    }  # fmt: skip
+    anchors = torch.tensor([-5.25, -1.75, 1.75, 5.25])
+    logits = torch.zeros(1, 4, BACKGROUND_INDEX + 1)
+    curves = torch.zeros(1, 4, S, 4)
+    matcher = HungarianMatcher(match_on="anchors", near_range=30.0)
+    ((pred, gt),) = matcher(logits, curves, targets, anchors)
+    assert dict(zip(gt.tolist(), pred.tolist())) == {0: 1, 1: 2, 2: 3}
+    cost = matcher.anchor_cost(anchors, targets)
+    torch.testing.assert_close(cost[0, 1, 0], torch.tensor(abs(-1.9 + 1.75)))  # near samples only
+    assert HungarianMatcher(match_on="anchors", near_range=200.0).anchor_cost(anchors, targets)[0, :, 0].argmin() == 0
+    with pytest.raises(ValueError, match="anchor_span"):
+        matcher(logits, curves, targets, None)
+    with pytest.raises(ValueError, match="match_on"):
+        HungarianMatcher(match_on="nearest")

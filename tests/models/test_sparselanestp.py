@@ -1,5 +1,6 @@
 import pytest
 import torch
+from torch import nn
 
 from lanelab.geometry import make_transform
 from lanelab.models.heads import NUM_LANE_CATEGORIES
@@ -15,7 +16,7 @@ TINY = dict(
     attention="sparse", use_sla=True, use_pna=True, use_tca=True, pna_neighbors=2, tca_neighbors=4,
     num_memory_frames=2, num_memory_lines=2,
     num_classes=NUM_LANE_CATEGORIES, x_range=(-10.0, 10.0), y_range=(3.0, 103.0), z_range=(-2.0, 3.0),
-    representation="catmull_rom", head_hidden_layers=2, ground_encoding=True,
+    representation="catmull_rom", head_hidden_layers=2, ground_encoding=True, anchor_span=5.25, dca_content_weights=True,
 )  # fmt: skip
 BASELINE = {**TINY, "num_memory_frames": 0, "attention": "global", "representation": "discrete"}
 
@@ -67,6 +68,8 @@ def test_output_layout():
 @pytest.mark.parametrize("config", [TINY, BASELINE], ids=["sparselanestp", "baseline"])
 def test_every_parameter_receives_gradient_in_a_windowed_step(config):
     net = model(**config)
+    for branch in (net.head.x_mlp, net.head.z_mlp, net.query_generator.initial_points):
+        nn.init.normal_(branch[-1].weight, std=0.1)  # zero at init (no gradient behind them): as after a step
     batch = window()
     batch["images"].requires_grad_(True)
     out = net(batch)
@@ -88,6 +91,7 @@ def test_streaming_equals_windowed_inference():
         windowed = net(batch, all_frames=True)
         starts = [torch.tensor([True, True]), torch.tensor([False, True]), torch.tensor([False, False])]
         streamed = [net.step({**frame(batch, f), "reset": starts[f]}) for f in range(F)]
+    torch.testing.assert_close(windowed.pop("anchors"), streamed[-1]["anchors"])
     for key in windowed:
         axis = 2 if key in ("points", "logits") else 1
         for f in (1, 2):  # frame 0 of sample 1 is padding, so compare from frame 1 on

@@ -53,7 +53,8 @@ TARGET_KEYS = ("gt_y", "gt_x", "gt_z", "gt_vis", "gt_category", "gt_mask")
 def criterion_inputs(outputs: Mapping[str, Any], frames: Tensor) -> dict[str, Any]:
     """The criterion's input for the batch elements selected by frames (B,) bool: every
     decoder layer's control points (B', N, M, 4) and logits (B', N, K + 1), and for the
-    temporal regulariser the last layer's points with the memory the frame attended to."""
+    temporal regulariser the last layer's points with the memory the frame attended to; the
+    lines' anchors (the matcher's, when it matches on anchors)."""
     points, logits = outputs["points"][:, frames], outputs["logits"][:, frames]
     memory = outputs["memory"]
     if memory is not None:
@@ -61,6 +62,7 @@ def criterion_inputs(outputs: Mapping[str, Any], frames: Tensor) -> dict[str, An
     return {
         "layers": [{"control_points": p, "logits": c} for p, c in zip(points, logits)],
         "temporal": {"current": points[-1], "propagated_memory": memory},
+        "anchors": outputs.get("anchors"),
     }
 
 

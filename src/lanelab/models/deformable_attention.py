@@ -6,6 +6,14 @@ query's 3D control point is re-projected into the image, and every head samples
 query predicts. Sampling is bilinear ``F.grid_sample``: one call per level for all queries,
 heads and points, so it runs as a handful of large kernels on a GPU.
 
+With ``content_weights`` (not in Deformable DETR) a sample's weight also depends on what it
+reads: its attention logit gets the scaled dot product of the sampled value with a projection
+of the query, as in ordinary attention. Deformable DETR's weights depend on the query alone, so
+its output is a fixed blend of what lies at the sampling locations and cannot say which of them
+holds the lane marking; features must learn to encode offsets first, which a small backbone
+trained from scratch does not do in a short schedule. With content weights the marking's sample
+wins the softmax, and the ground positional encoding it carries says where it is.
+
 A control point that projects outside the image is referenced at the nearest image border
 (lanes leave the image at its bottom and sides, and their nearest visible part is there);
 one behind the camera gets zero weight on every sample (it reads nothing from the image). A
@@ -27,9 +35,12 @@ from lanelab.geometry import project_lane_points
 
 class DeformableCrossAttention(nn.Module):
     """embed_dim C (divisible by num_heads); num_levels: feature maps it reads (the finest
-    ``num_levels`` of those passed); num_points: samples per head and level."""
+    ``num_levels`` of those passed); num_points: samples per head and level; content_weights:
+    also weigh each sample by its content (module doc)."""
 
-    def __init__(self, embed_dim: int, num_heads: int, num_levels: int, num_points: int) -> None:
+    def __init__(
+        self, embed_dim: int, num_heads: int, num_levels: int, num_points: int, content_weights: bool = False
+    ) -> None:
         super().__init__()
         if embed_dim % num_heads:
             raise ValueError(f"embed_dim {embed_dim} is not divisible by num_heads {num_heads}")
@@ -38,6 +49,7 @@ class DeformableCrossAttention(nn.Module):
         self.attention_weights = nn.Linear(embed_dim, num_heads * num_levels * num_points)
         self.value_proj = nn.Linear(embed_dim, embed_dim)
         self.output_proj = nn.Linear(embed_dim, embed_dim)
+        self.content_proj = nn.Linear(embed_dim, embed_dim) if content_weights else None
         self._init_weights()
 
     def _init_weights(self) -> None:
@@ -78,8 +90,7 @@ class DeformableCrossAttention(nn.Module):
         reference, visible = self._reference_points(points, K, T_lane_cam, image_size)  # (B,Q,2), (B,Q)
 
         offsets = self.sampling_offsets(queries).view(B, Q, h, L, P, 2)
-        weights = self.attention_weights(queries).view(B, Q, h, L * P).softmax(-1)
-        weights = weights * visible[:, :, None, None].to(weights.dtype)
+        logits = self.attention_weights(queries).view(B, Q, h, L * P)
 
         sampled = []
         for level, feature in enumerate(features[:L]):
@@ -97,7 +108,11 @@ class DeformableCrossAttention(nn.Module):
             sampled.append(F.grid_sample(value.to(dtype), grid.to(dtype), padding_mode="zeros", align_corners=False))
         samples = torch.cat(sampled, dim=-1)  # (B h, C/h, Q, L P)
 
-        weights = weights.permute(0, 2, 1, 3).reshape(B * h, 1, Q, L * P).to(samples.dtype)
+        logits = logits.permute(0, 2, 1, 3).reshape(B * h, 1, Q, L * P).to(samples.dtype)
+        if self.content_proj is not None:  # + how well each sample's content answers the query
+            probe = self.content_proj(queries).view(B, Q, h, C // h).permute(0, 2, 3, 1).reshape(B * h, C // h, Q, 1)
+            logits = logits + (probe.to(samples.dtype) * samples).sum(1, keepdim=True) / math.sqrt(C // h)
+        weights = logits.softmax(-1) * visible.repeat_interleave(h, 0)[:, None, :, None].to(samples.dtype)
         out = (samples * weights).sum(-1)  # (B h, C/h, Q)
         out = out.view(B, C, Q).transpose(1, 2)
         return self.output_proj(out)

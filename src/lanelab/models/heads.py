@@ -97,6 +97,10 @@ class LaneHead(nn.Module):
         self.z_mlp = mlp(embed_dim, embed_dim, 1, num_hidden)
         self.v_mlp = mlp(embed_dim, embed_dim, 1, num_hidden)
         self.class_mlp = mlp(embed_dim, embed_dim, num_classes + 1, num_hidden)
+        # Deformable DETR: refinements start at zero, so every layer first keeps the points it got.
+        for branch in (self.x_mlp, self.z_mlp):
+            nn.init.zeros_(branch[-1].weight)
+            nn.init.zeros_(branch[-1].bias)
         # Non-persistent: derived from the configuration, not learned.
         self.register_buffer("y", control_point_y(num_points, *self.y_range), persistent=False)
 

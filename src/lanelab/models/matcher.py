@@ -8,6 +8,14 @@ long and short lanes weigh alike:
 - vis: mean |v - v̂| over all samples (eq. 24's target, as an L1 cost; bounded, unlike BCE).
 Targets are the collated dataset batch (lanelab.data): ``gt_x``, ``gt_z``, ``gt_vis`` (B, G, S)
 at the grid ``gt_y``, ``gt_category`` (B, G) OpenLane ids, ``gt_mask`` (B, G) real lanes.
+
+``match_on="anchors"`` (with a model that has line anchors, see models.query_init) pairs lanes
+with lines by where the lines start, not by what they predict, as Anchor3DLane assigns lanes to
+its anchors: the cost is the mean |x̂ - a| between the line's lateral anchor a and the lane's
+visible samples nearer than ``near_range`` m (all visible samples for a lane that starts
+further away). Matching on predictions is DETR's way and needs good predictions to be stable;
+early in training they are not, a lane goes to a different line from step to step, and every
+line learns the mean lane layout. Matching on anchors gives each line the same lane every step.
 """
 
 from __future__ import annotations
@@ -21,21 +29,43 @@ from torch import Tensor, nn
 from lanelab.models.heads import category_to_index
 
 
-class HungarianMatcher(nn.Module):
-    """cost_class, cost_reg, cost_vis: weights of the three pair costs; gamma: focal parameter."""
+MATCH_ON = ("predictions", "anchors")
 
-    def __init__(self, cost_class: float = 1.0, cost_reg: float = 1.0, cost_vis: float = 1.0, gamma: float = 2.0):
+
+class HungarianMatcher(nn.Module):
+    """cost_class, cost_reg, cost_vis: weights of the three pair costs; gamma: focal parameter;
+    match_on: "predictions" (DETR) or "anchors" (the lines' lateral anchors, module doc);
+    near_range: metres of the anchor cost."""
+
+    def __init__(
+        self,
+        cost_class: float = 1.0,
+        cost_reg: float = 1.0,
+        cost_vis: float = 1.0,
+        gamma: float = 2.0,
+        match_on: str = "predictions",
+        near_range: float = 30.0,
+    ):
         super().__init__()
+        if match_on not in MATCH_ON:
+            raise ValueError(f"match_on must be one of {MATCH_ON}, got {match_on!r}")
         self.cost_class, self.cost_reg, self.cost_vis, self.gamma = cost_class, cost_reg, cost_vis, gamma
+        self.match_on, self.near_range = match_on, near_range
 
     @torch.no_grad()
     def forward(
-        self, pred_logits: Tensor, pred_curves: Tensor, targets: Mapping[str, Tensor]
+        self, pred_logits: Tensor, pred_curves: Tensor, targets: Mapping[str, Tensor], anchors: Tensor | None = None
     ) -> list[tuple[Tensor, Tensor]]:
         """pred_logits (B, N, K + 1), background last; pred_curves (B, N, S, 4) = (x, y, z, v)
-        sampled at the ground truth's y grid. Returns per batch item (pred_index, gt_index),
-        long tensors of equal length min(N, G_b), gt_index into the padded G axis."""
-        cost = self.cost_matrix(pred_logits, pred_curves, targets).cpu()
+        sampled at the ground truth's y grid; anchors (N,) metres, needed by match_on="anchors".
+        Returns per batch item (pred_index, gt_index), long tensors of equal length min(N, G_b),
+        gt_index into the padded G axis."""
+        if self.match_on == "anchors":
+            if anchors is None:
+                raise ValueError('match_on="anchors" needs a model with line anchors (model.net.anchor_span)')
+            cost = self.anchor_cost(anchors, targets).cpu()
+        else:
+            cost = self.cost_matrix(pred_logits, pred_curves, targets).cpu()
         matches = []
         for cost_b, real in zip(cost, targets["gt_mask"].cpu()):  # the solver is per image
             gt_index = real.nonzero()[:, 0]
@@ -43,6 +73,15 @@ class HungarianMatcher(nn.Module):
             matches.append((torch.as_tensor(rows, dtype=torch.long), gt_index[torch.as_tensor(cols, dtype=torch.long)]))
         device = pred_logits.device
         return [(pred.to(device), gt.to(device)) for pred, gt in matches]
+
+    def anchor_cost(self, anchors: Tensor, targets: Mapping[str, Tensor]) -> Tensor:
+        """Pair costs (B, N, G): mean |x̂ - a| over each lane's near visible samples."""
+        visible = targets["gt_vis"] > 0.5  # (B, G, S)
+        y = targets["gt_y"] if targets["gt_y"].dim() == 2 else targets["gt_y"].expand(visible.shape[0], -1)
+        near = visible & (y[:, None, :] <= self.near_range)
+        used = torch.where(near.any(-1, keepdim=True), near, visible).float()[:, None]  # (B, 1, G, S)
+        distance = (targets["gt_x"][:, None].float() - anchors.float()[None, :, None, None]).abs()  # (B, N, G, S)
+        return (distance * used).sum(-1) / used.sum(-1).clamp_min(1)
 
     def cost_matrix(self, pred_logits: Tensor, pred_curves: Tensor, targets: Mapping[str, Tensor]) -> Tensor:
         """Pair costs (B, N, G) of every proposal and every (padded) ground-truth lane."""

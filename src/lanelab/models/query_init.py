@@ -11,6 +11,13 @@ As in LATR, line and point embeddings combine by broadcast addition into N x M q
 Simplifications of LATR's version (where the paper is silent): one activation map per line
 (LATR uses SparseInst's 4-group maps) and no class/objectness outputs on the instance branch
 (the decoder's classifier does that job).
+
+Line anchors (optional; DAB-DETR's learned anchors, Anchor3DLane's lateral anchors): each line
+starts from its own learned lateral offset, spread evenly over [-anchor_span, anchor_span] m,
+and the MLP predicts the initial points as corrections of that straight line (its last layer
+starts at zero). Without them every line starts from the same place and only the matcher tells
+them apart; with them a line has a place on the road from the first step, and the matcher can
+assign lanes by it (``HungarianMatcher(match_on="anchors")``).
 """
 
 from __future__ import annotations
@@ -43,10 +50,18 @@ def _with_coordinates(features: Tensor) -> Tensor:
 class LaneQueryGenerator(nn.Module):
     """embed_dim C: channels of the feature map and of the queries; num_lines N;
     num_points M; num_convs: 3x3 convolutions per branch (LATR: 4); mask_dim: channels of the
-    mask features and kernels; num_hidden: hidden layers of the control point MLP."""
+    mask features and kernels; num_hidden: hidden layers of the control point MLP;
+    anchor_logits: (N,) initial pre-sigmoid x of the line anchors, or None (no anchors)."""
 
     def __init__(
-        self, embed_dim: int, num_lines: int, num_points: int, num_convs: int, mask_dim: int, num_hidden: int
+        self,
+        embed_dim: int,
+        num_lines: int,
+        num_points: int,
+        num_convs: int,
+        mask_dim: int,
+        num_hidden: int,
+        anchor_logits: Tensor | None = None,
     ) -> None:
         super().__init__()
         self.instance_convs = _conv_stack(embed_dim + 2, embed_dim, num_convs)
@@ -62,6 +77,10 @@ class LaneQueryGenerator(nn.Module):
         # so every line embedding first sees the mean feature.
         nn.init.normal_(self.activation_maps.weight, std=0.01)
         nn.init.constant_(self.activation_maps.bias, -math.log((1 - 0.01) / 0.01))
+        self.anchor_logits = None if anchor_logits is None else nn.Parameter(anchor_logits.clone().float())
+        if self.anchor_logits is not None:  # start exactly on the anchors
+            nn.init.zeros_(self.initial_points[-1].weight)
+            nn.init.zeros_(self.initial_points[-1].bias)
 
     def forward(self, features: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """features (B, C, H, W), LATR: the stride-8 FPN level.
@@ -80,4 +99,7 @@ class LaneQueryGenerator(nn.Module):
         masks = (self.mask_kernel(lines) @ mask_features).view(B, -1, H, W)
 
         queries = lines[:, :, None, :] + self.point_embedding.weight  # (B, N, M, C)
-        return queries, self.initial_points(queries), masks
+        logits = self.initial_points(queries)
+        if self.anchor_logits is not None:
+            logits = torch.cat([logits[..., :1] + self.anchor_logits[:, None, None], logits[..., 1:]], -1)
+        return queries, logits, masks

@@ -20,7 +20,14 @@ Unlike LATR, the initial queries 0Q are the content (LATR starts from zeros and 
 positions; §3.2 feeds 0Q to the decoder) with PE(P) as positions, and the deformable attention
 samples the FPN levels directly (Deformable DETR) where LATR first fuses them into one map.
 The memory keeps the lines with the highest foreground class probability (StreamPETR's top-k
-by score, with DETR's softmax score).
+by score, with DETR's softmax score). The image features carry LATR's 3D ground positional
+encoding (models.ground_encoding).
+
+Three options make a small model learn from a short schedule (issue "The detectors must learn";
+each can be switched off to get the paper's / LATR's behaviour): learned lateral line anchors
+(anchor_span, DAB-DETR / Anchor3DLane style) with lanes assigned to lines by them
+(HungarianMatcher(match_on="anchors")), and sample weights in the deformable cross-attention
+that depend on the sampled content (dca_content_weights).
 """
 
 from __future__ import annotations
@@ -63,7 +70,8 @@ class SparseLaneSTP(nn.Module):
     embed_dim C (FPN and queries).
     Queries: num_lines N, num_points M, query_convs, mask_dim (the instance branch).
     Decoder: num_layers L, num_heads, ffn_dim, dropout; deformable attention over dca_levels
-    FPN levels (LATR: 4, strides 8 to 64) with dca_points samples per head and level.
+    FPN levels (LATR: 4, strides 8 to 64) with dca_points samples per head and level;
+    dca_content_weights: weigh the samples by their content too (models.deformable_attention).
     Attention: attention ("sparse" / "dense": STA with masked relations, "global": full
     self-attention over the N x M queries, the LATR baseline), use_sla, use_pna, use_tca,
     pna_neighbors (2 per adjacent line), tca_neighbors M_TCA.
@@ -72,6 +80,8 @@ class SparseLaneSTP(nn.Module):
     representation ("catmull_rom" or "discrete"), head_hidden_layers.
     Image positions: ground_encoding adds LATR's 3D ground positional encoding to the image
     features the cross-attention reads (models.ground_encoding).
+    Line anchors: anchor_span (metres) spreads the N lines' learned lateral anchors evenly over
+    [-anchor_span, anchor_span] (models.query_init); null: no anchors.
     """
 
     def __init__(
@@ -105,12 +115,20 @@ class SparseLaneSTP(nn.Module):
         representation: str,
         head_hidden_layers: int,
         ground_encoding: bool,
+        anchor_span: float | None,
+        dca_content_weights: bool,
     ) -> None:
         super().__init__()
         self.backbone = ResNet(backbone_depth, backbone_width, _BACKBONE_STAGES)
         self.neck = FPN(self.backbone.out_channels, embed_dim, dca_levels)
+        anchor_logits = None
+        if anchor_span is not None:
+            if not 0 <= anchor_span < min(-x_range[0], x_range[1]):
+                raise ValueError(f"anchor_span={anchor_span} must lie inside x_range {tuple(x_range)}")
+            unit = (torch.linspace(-anchor_span, anchor_span, num_lines) - x_range[0]) / (x_range[1] - x_range[0])
+            anchor_logits = torch.logit(unit)
         self.query_generator = LaneQueryGenerator(
-            embed_dim, num_lines, num_points, query_convs, mask_dim, head_hidden_layers
+            embed_dim, num_lines, num_points, query_convs, mask_dim, head_hidden_layers, anchor_logits
         )
         head = LaneHead(
             embed_dim, num_points, num_classes, tuple(x_range), tuple(y_range), tuple(z_range),
@@ -125,7 +143,7 @@ class SparseLaneSTP(nn.Module):
                     embed_dim, num_heads, num_neighbors=pna_neighbors, m_tca=tca_neighbors, use_sla=use_sla,
                     use_pna=use_pna, use_tca=use_tca, dropout=dropout, impl=attention,
                 ),  # fmt: skip
-                DeformableCrossAttention(embed_dim, num_heads, dca_levels, dca_points),
+                DeformableCrossAttention(embed_dim, num_heads, dca_levels, dca_points, dca_content_weights),
             )
             for _ in range(num_layers)
         ]
@@ -148,7 +166,7 @@ class SparseLaneSTP(nn.Module):
         T_world_lane (B, F, 4, 4), valid (B, F) bool (False: padding before a clip start);
         K in pixels of the images as given (after any resizing).
         Returns the current (last) frame's outputs (see ``step``). With all_frames, every
-        tensor output gets a frame axis after the batch axis (B, F, ...), "memory" is left out,
+        per-frame output gets a frame axis after the batch axis (B, F, ...), "memory" is left out,
         and every frame is differentiable; otherwise the earlier frames only fill the memory,
         without gradient.
         """
@@ -176,8 +194,9 @@ class SparseLaneSTP(nn.Module):
                 )
         if not all_frames:
             return outputs[-1]
-        tensors = [key for key in outputs[-1] if key != "memory"]
-        return {key: torch.stack([out[key] for out in outputs], dim=_frame_axis(key)) for key in tensors}
+        tensors = [key for key in outputs[-1] if key not in ("memory", "anchors")]
+        stacked = {key: torch.stack([out[key] for out in outputs], dim=_frame_axis(key)) for key in tensors}
+        return {**stacked, "anchors": outputs[-1]["anchors"]}
 
     # ---------------------------------------------------------------- streaming
     def reset(self, mask: Tensor) -> None:
@@ -196,6 +215,7 @@ class SparseLaneSTP(nn.Module):
             logits      (L, B, N, K + 1) class logits of every layer, background last
             init_points (B, N, M, 4)     the query generator's initial control points 0P
             masks       (B, N, H/8, W/8) auxiliary instance-mask logits (stride of FPN level 0)
+            anchors     (N,) the lines' lateral anchors (metres), or None without anchors
             memory      MemoryState | None, the propagated memory this frame attended to (what
                         the temporal regulariser, eq. 12-13, compares with); None when empty
         """
@@ -206,6 +226,14 @@ class SparseLaneSTP(nn.Module):
         return self._decode(
             encoded, frame["K"], frame["T_lane_cam"], frame["T_world_lane"], tuple(images.shape[-2:]), self._stream
         )
+
+    def anchors(self) -> Tensor | None:
+        """The lines' lateral anchors x (N,), metres; None when the model has none."""
+        logits = self.query_generator.anchor_logits
+        if logits is None:
+            return None
+        low, high = self.head.x_range
+        return logits.sigmoid() * (high - low) + low
 
     # ------------------------------------------------------------------ decoding
     def decode(self, outputs: Mapping[str, Tensor], y: Tensor) -> Tensor:
@@ -247,6 +275,7 @@ class SparseLaneSTP(nn.Module):
             "logits": logits,
             "init_points": self.head.control_points(encoded.logits),
             "masks": encoded.masks,
+            "anchors": self.anchors(),
             "memory": state,
         }
 

@@ -60,15 +60,17 @@ class SparseLaneSTPLoss(nn.Module):
 
     def forward(self, outputs: Mapping, targets: Mapping[str, Tensor]) -> dict[str, Tensor]:
         """outputs: {"layers": [{"control_points": (B, N, M, 4), "logits": (B, N, K + 1)}, ...],
-        optionally "temporal": {"current": (B, N, M, 4), "propagated_memory": MemoryState | None}};
+        optionally "temporal": {"current": (B, N, M, 4), "propagated_memory": MemoryState | None}
+        and "anchors": the lines' lateral anchors (N,) (for HungarianMatcher(match_on="anchors"));
         targets: the collated dataset batch: gt_y (S,) or (B, S), gt_x / gt_z / gt_vis (B, G, S),
         gt_category (B, G) OpenLane ids, gt_mask (B, G).
         Returns every term of TERMS (summed over layers) and "total", the weighted sum."""
         first = outputs["layers"][0]["control_points"]
         losses = {term: first.new_zeros(()) for term in TERMS}
         basis = self._basis(targets["gt_y"].to(first))  # (S, M) or (B, S, M)
+        anchors = outputs.get("anchors")
         for layer in outputs["layers"]:
-            for term, value in self._layer_losses(layer["control_points"], layer["logits"], basis, targets).items():
+            for term, value in self._layer_losses(layer["control_points"], layer["logits"], basis, targets, anchors).items():
                 losses[term] = losses[term] + value
         if self.weights["temporal"] and "temporal" in outputs:
             temporal = outputs["temporal"]
@@ -79,12 +81,12 @@ class SparseLaneSTPLoss(nn.Module):
         return losses
 
     def _layer_losses(
-        self, points: Tensor, logits: Tensor, basis: Tensor, targets: Mapping[str, Tensor]
+        self, points: Tensor, logits: Tensor, basis: Tensor, targets: Mapping[str, Tensor], anchors: Tensor | None
     ) -> dict[str, Tensor]:
         """Matching, detection losses and spatial priors of one decoder layer's output."""
         B, N = logits.shape[:2]
         curves = (basis[:, None] if basis.dim() == 3 else basis) @ points  # (B, N, S, 4)
-        matches = self.matcher(logits, curves, targets)
+        matches = self.matcher(logits, curves, targets, anchors)
         batch = torch.cat([torch.full_like(pred, b) for b, (pred, _) in enumerate(matches)])
         pred = torch.cat([pred for pred, _ in matches])
         gt = torch.cat([gt for _, gt in matches])
