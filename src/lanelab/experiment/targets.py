@@ -8,8 +8,8 @@ the target (unless it takes ``**kwargs``), every parameter without a default mus
 code itself, so a new model needs no schema of its own.
 
 Type hints are checked as far as they are plain (bool, int, float, str, paths, Optional,
-Union, Literal, sequences, mappings, classes of other ``_target_`` nodes); hints that say
-less than that, or that cannot be resolved, accept any value.
+Union, Literal, sequences, mappings, TypedDicts (their keys and no others), classes of other
+``_target_`` nodes); hints that say less than that, or that cannot be resolved, accept any value.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import os
 import types
 from collections.abc import Callable, Iterable, Mapping, MutableMapping, Sequence
 from pathlib import Path
-from typing import Any, Literal, Union, get_args, get_origin
+from typing import Any, Literal, Union, get_args, get_origin, get_type_hints, is_typeddict
 
 from hydra.utils import get_object
 from omegaconf import DictConfig, ListConfig, OmegaConf
@@ -116,6 +116,8 @@ def _fits(value: Any, hint: Any) -> bool:
         return value is None
     if isinstance(value, Mapping) and "_target_" in value:
         return _target_fits(value, hint)
+    if is_typeddict(hint):
+        return isinstance(value, Mapping) and _typeddict_fits(value, hint)
     if hint in _SCALARS:
         # bool is an int to Python, never to a config
         return isinstance(value, _SCALARS[hint]) and (hint is bool or not isinstance(value, bool))
@@ -130,6 +132,13 @@ def _fits(value: Any, hint: Any) -> bool:
 def _offending(value: Any, hint: Any, path: str) -> tuple[str, Any, Any]:
     """The innermost (key, value, hint) of a value that does not fit, to name it in the error."""
     kind, args = get_origin(hint) or hint, get_args(hint)
+    arms = [arm for arm in args if arm is not type(None)]
+    if kind in (Union, types.UnionType) and value is not None and len(arms) == 1:
+        return _offending(value, arms[0], path)  # an Optional: what the value should have been
+    if is_typeddict(kind) and isinstance(value, Mapping) and _has_typeddict_keys(value, kind):
+        fields = get_type_hints(kind)  # the keys are right: name the value that is not
+        key = next(key for key, item in value.items() if not _fits(item, fields[key]))
+        return _offending(value[key], fields[key], f"{path}.{key}")
     if kind in _MAPPINGS and len(args) == 2 and isinstance(value, Mapping):
         for key, item in value.items():
             if not _fits(item, args[1]):
@@ -149,6 +158,16 @@ def _sequence_fits(value: Any, kind: Any, args: tuple[Any, ...]) -> bool:
     return all(_fits(v, args[0]) for v in value) if args else True
 
 
+def _typeddict_fits(value: Mapping[str, Any], hint: Any) -> bool:
+    fields = get_type_hints(hint)
+    return _has_typeddict_keys(value, hint) and all(_fits(item, fields[key]) for key, item in value.items())
+
+
+def _has_typeddict_keys(value: Mapping[str, Any], hint: Any) -> bool:
+    """Whether a mapping has a TypedDict's required keys and no others."""
+    return hint.__required_keys__ <= value.keys() <= get_type_hints(hint).keys()
+
+
 def _target_fits(node: Mapping[str, Any], hint: Any) -> bool:
     """A node that Hydra builds fits a class hint when it builds that class (or a subclass);
     a partial (a factory) fits a callable hint."""
@@ -160,6 +179,8 @@ def _target_fits(node: Mapping[str, Any], hint: Any) -> bool:
 
 
 def _describe(hint: Any) -> str:
+    if is_typeddict(hint):
+        return "{" + ", ".join(f"{key}: {_describe(item)}" for key, item in get_type_hints(hint).items()) + "}"
     return hint.__name__ if isinstance(hint, type) else str(hint).replace("typing.", "")
 
 

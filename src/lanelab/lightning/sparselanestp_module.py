@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
-from typing import Any
+from typing import Any, TypedDict
 
 import lightning.pytorch as pl
 import torch
@@ -66,6 +66,12 @@ def criterion_inputs(outputs: Mapping[str, Any], frames: Tensor) -> dict[str, An
     }
 
 
+class BackboneStart(TypedDict):
+    """model.backbone: where the backbone starts (its shape is the model/backbone group's)."""
+
+    weights: str | None  # a torchvision-layout ResNet state dict file; None: from scratch
+
+
 class SparseLaneSTPModule(pl.LightningModule):
     """net: the SparseLaneSTP; criterion: its SparseLaneSTPLoss; mask_criterion: the auxiliary
     InstanceMaskLoss of its query generator; metric: the settings (fields of
@@ -94,7 +100,7 @@ class SparseLaneSTPModule(pl.LightningModule):
         warmup_steps: int,
         min_lr: float,
         num_pictures: int,
-        backbone: Mapping[str, Any] | None = None,
+        backbone: BackboneStart | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters(ignore=["net", "criterion", "mask_criterion"])
@@ -109,6 +115,7 @@ class SparseLaneSTPModule(pl.LightningModule):
         self.backbone_weights = (backbone or {}).get("weights")
 
     def setup(self, stage: str) -> None:
+        # Before a resumed run's checkpoint is restored, which then overrides these weights.
         if stage == "fit" and self.backbone_weights is not None:
             load_torchvision_weights(self.net.backbone, self.backbone_weights)
 

@@ -1,4 +1,5 @@
-"""ResNet-18/34/50 backbone (He et al. 2016) in plain PyTorch, trained from scratch.
+"""ResNet-18/34/50 backbone (He et al. 2016) in plain PyTorch, trained from scratch or from
+weights in torchvision's key layout (:func:`load_torchvision_weights`).
 
 The widths are a constructor argument so the same code builds the paper's ResNet-50
 (base_width=64) and a tiny variant (e.g. base_width=8) that trains on a laptop CPU.
@@ -125,6 +126,7 @@ def load_torchvision_weights(resnet: ResNet, path: str | Path) -> None:
     torchvision -> lanelab: ``conv1`` / ``bn1`` -> ``stem.0.0`` / ``stem.0.1``;
     ``layer{k}.{b}.conv{i}`` / ``bn{i}`` -> ``stages.{k-1}.{b}.conv{i}.0`` / ``.1``;
     ``layer{k}.{b}.downsample.{0,1}`` -> ``stages.{k-1}.{b}.shortcut.{0,1}``; ``fc.*`` is ignored.
+    The file holds the state dict itself or a checkpoint dict with it under "state_dict" or "model".
     Every parameter and batch-norm buffer of ``resnet`` must come from the file with its shape
     (so depth and width must match: torchvision's ResNets have base width 64); a ValueError
     naming the file and the keys says what does not fit.
@@ -136,8 +138,9 @@ def load_torchvision_weights(resnet: ResNet, path: str | Path) -> None:
         loaded = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # a truncated or foreign file: say which
         raise ValueError(f"{path}: not a PyTorch state dict ({error})") from error
-    if isinstance(loaded, dict) and isinstance(loaded.get("state_dict"), dict):
-        loaded = loaded["state_dict"]
+    for wrapper in ("state_dict", "model"):  # a training checkpoint holding the weights
+        if isinstance(loaded, dict) and isinstance(loaded.get(wrapper), dict):
+            loaded = loaded[wrapper]
     if not isinstance(loaded, dict):
         raise ValueError(f"{path}: holds a {type(loaded).__name__}, not a state dict")
     origin = {_lanelab_name(key): key for key in loaded if not key.startswith("fc.")}
