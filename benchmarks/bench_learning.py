@@ -3,6 +3,7 @@
     python benchmarks/bench_learning.py [--models sparselanestp latr_baseline] [--seeds 0 1 2]
         [--max-steps 1500] [--max-time 00:00:05:00] [--val-every 250] [--out runs/bench_learning]
         [--results] [key=value ...]
+    python benchmarks/bench_learning.py --combine A/summary.json B/summary.json [--out DIR] [--results]
 
 Every (model, seed) trains as ``lanelab-demo`` trains it (``experiment=demo``, the extra
 ``key=value`` arguments as Hydra overrides), validating every ``--val-every`` steps, then its
@@ -15,7 +16,8 @@ Writes to ``--out``: ``curves.png`` (every loss term, validation F1 and x / z er
 steps, a line per run), ``summary.json`` and ``learning.md`` (held-out scores per seed, mean and
 sample standard deviation over seeds, the blind prior, the temporal model's lead). With
 ``--results`` the Markdown replaces the "Learning" section of ``benchmarks/RESULTS.md`` and the
-PNG is copied to ``benchmarks/learning_curves.png``.
+PNG is copied to ``benchmarks/learning_curves.png``. ``--combine`` joins the summaries of
+runs made apart (e.g. one process per model on a machine with spare cores) into one report.
 """
 
 from __future__ import annotations
@@ -57,7 +59,15 @@ def main() -> None:
     parser.add_argument("--val-every", type=int, default=250, help="validate every N training steps")
     parser.add_argument("--out", type=Path, default=Path("runs/bench_learning"))
     parser.add_argument("--results", action="store_true", help="write the section into benchmarks/RESULTS.md")
+    parser.add_argument("--combine", nargs="+", type=Path, help="report on these summary.json files, train nothing")
     args, overrides = parser.parse_known_args()
+    if args.combine:
+        parts = [json.loads(path.read_text()) for path in args.combine]
+        runs = {label: run for part in parts for label, run in part["runs"].items()}
+        models = list(dict.fromkeys(run["model"] for run in runs.values()))
+        command = " && ".join(part["command"] for part in parts)
+        write_outputs({"command": command, "machine": parts[0]["machine"], "runs": runs}, models, args)
+        return
     start = time.monotonic()
 
     base = load_train_config(["experiment=demo", *overrides, "paths.output_dir=."])
@@ -70,13 +80,17 @@ def main() -> None:
         for seed in args.seeds:
             print(f"== {model}, seed {seed} [{time.monotonic() - start:.0f} s]", flush=True)
             runs[f"{model} s{seed}"] = run_one(model, seed, stores, args, overrides)
+    write_outputs({"command": command_line(), "machine": machine(), "runs": runs}, args.models, args)
 
+
+def write_outputs(summary: dict, models: list[str], args: argparse.Namespace) -> None:
+    """summary.json, curves.png and learning.md in --out; with --results, RESULTS.md too."""
+    runs = summary["runs"]
     args.out.mkdir(parents=True, exist_ok=True)
-    summary = {"command": command_line(), "machine": machine(), "runs": runs}
     with atomic_output(args.out / "summary.json") as tmp:
         tmp.write_text(json.dumps(summary, indent=1))
     write_png(args.out / "curves.png", runs)
-    markdown = report(summary, args.models, "learning_curves.png" if args.results else "curves.png")
+    markdown = report(summary, models, "learning_curves.png" if args.results else "curves.png")
     with atomic_output(args.out / "learning.md") as tmp:
         tmp.write_text(markdown)
     print("\n" + markdown)

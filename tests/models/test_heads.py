@@ -125,3 +125,16 @@ def test_points_stay_float32_under_bf16_autocast():
         points = lane_head.control_points(logits)
         dense = lane_head.decode(points, torch.linspace(3.0, 103.0, 7))
     assert logits.dtype == points.dtype == dense.dtype == torch.float32
+
+
+def test_visibility_is_interpolated_linearly_so_a_lane_end_stays_in_0_1_and_keeps_its_gradient():
+    points = torch.zeros(1, M, 4)
+    points[0, :, 1] = torch.linspace(3.0, 103.0, M)
+    points[0, :, 3] = torch.tensor([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])  # the lane ends between 43 and 63 m
+    points.requires_grad_(True)
+    y = torch.linspace(3.0, 103.0, 101)
+    v = head().decode(points, y)[0, :, 3]
+    assert 0 <= v.min() and v.max() <= 1 and (v.diff() <= 1e-6).all()  # no overshoot: monotone
+    torch.testing.assert_close(v[y == 53.0], torch.tensor([0.5]))
+    v.sum().backward()
+    assert (points.grad[0, :, 3] > 0).all()

@@ -13,7 +13,7 @@ predicted afresh by every layer, as in LATR (and literally eq. 7).
 Two representations of the same M points (the ablation of Table 1):
 - ``"catmull_rom"``: control points of a Catmull-Rom spline (§3.1, supplementary A);
 - ``"discrete"``: LATR's points at fixed y, linearly interpolated in between.
-Both decode as one matrix product ``basis(y) @ P``.
+Both decode as matrix products with ``lane_bases``; visibility is always interpolated linearly.
 
 Classification averages the M queries of a line and maps them to K categories + background.
 """
@@ -66,6 +66,25 @@ def normalise_points(
     low = points.new_tensor([x_range[0], y_range[0], z_range[0], 0.0])
     high = points.new_tensor([x_range[1], y_range[1], z_range[1], 1.0])
     return (points - low) / (high - low)
+
+
+def lane_bases(representation: str, num_points: int, s: Tensor) -> tuple[Tensor, Tensor]:
+    """Matrices (..., S, M) that sample M control points at curve arguments s (..., S): one for
+    the geometry, following the representation (Catmull-Rom or LATR's linear interpolation), one
+    for visibility, always linear: a spline through probabilities overshoots [0, 1], and a
+    clamped overshoot has no gradient, so a lane's end could never be learnt there."""
+    u = s.clamp(0, 1) * (num_points - 1)
+    linear = (1 - (u[..., None] - torch.arange(num_points, dtype=s.dtype, device=s.device)).abs()).clamp(min=0)
+    if representation == "catmull_rom":
+        return sampling_matrix(num_points, s), linear
+    return linear, linear
+
+
+def sample_lanes(points: Tensor, bases: tuple[Tensor, Tensor]) -> Tensor:
+    """Control points (..., M, 4) sampled with ``lane_bases`` (S, M), or (B, S, M) for points
+    (B, N, M, 4) -> (..., S, 4): x, y, z from the geometry basis, v from the visibility one."""
+    geometry, visibility = (basis[:, None] if basis.dim() == 3 else basis for basis in bases)
+    return torch.cat([geometry @ points[..., :3], visibility @ points[..., 3:]], dim=-1)
 
 
 class LaneHead(nn.Module):
@@ -131,23 +150,17 @@ class LaneHead(nn.Module):
         """queries (B, N, M, C) -> class logits (B, N, K + 1), background last."""
         return self.class_mlp(queries.mean(dim=-2))
 
-    def basis(self, y: Tensor) -> Tensor:
-        """(S, M) matrix A with lane(y) = A @ P for longitudinal positions y (S,) in y_range."""
+    def bases(self, y: Tensor) -> tuple[Tensor, Tensor]:
+        """The (S, M) bases of geometry and visibility (``lane_bases``) at positions y (S,) in y_range."""
         s = curve_arguments(y, *self.y_range)
         if not bool(((s >= -1e-6) & (s <= 1 + 1e-6)).all()):
             raise ValueError(f"decoding positions y must lie in {self.y_range}")
-        if self.representation == "catmull_rom":
-            return sampling_matrix(self.num_points, s)
-        # Discrete: hat functions, i.e. linear interpolation between neighbouring points.
-        u = s.clamp(0, 1) * (self.num_points - 1)
-        return (1 - (u[:, None] - torch.arange(self.num_points, dtype=s.dtype, device=s.device)).abs()).clamp(min=0)
+        return lane_bases(self.representation, self.num_points, s)
 
     def decode(self, points: Tensor, y: Tensor) -> Tensor:
         """Control points (..., M, 4) -> dense lanes (..., S, 4) = (x, y, z, v) at y (S,).
-
-        Visibility is clamped to [0, 1] (a spline can overshoot between control points).
         Computed in the points' precision, also under autocast."""
         with torch.autocast(points.device.type, enabled=False):
-            dense = self.basis(y.to(points)) @ points
+            dense = sample_lanes(points, self.bases(y.to(points)))
         x, _, z, v = dense.unbind(-1)
-        return torch.stack([x, y.to(points).expand_as(x), z, v.clamp(0, 1)], dim=-1)
+        return torch.stack([x, y.to(points).expand_as(x), z, v], dim=-1)

@@ -15,8 +15,8 @@ from collections.abc import Mapping
 import torch
 from torch import Tensor, nn
 
-from lanelab.geometry import curve_arguments, sampling_matrix
-from lanelab.models.heads import category_to_index
+from lanelab.geometry import curve_arguments
+from lanelab.models.heads import category_to_index, lane_bases, sample_lanes
 from lanelab.models.losses.detection import focal_loss, regression_loss, visibility_loss
 from lanelab.models.losses.priors import curvature_excess, parallelism_and_surface, temporal_consistency
 from lanelab.models.matcher import HungarianMatcher
@@ -67,10 +67,10 @@ class SparseLaneSTPLoss(nn.Module):
         Returns every term of TERMS (summed over layers) and "total", the weighted sum."""
         first = outputs["layers"][0]["control_points"]
         losses = {term: first.new_zeros(()) for term in TERMS}
-        basis = self._basis(targets["gt_y"].to(first))  # (S, M) or (B, S, M)
+        bases = self._bases(targets["gt_y"].to(first))  # (S, M) or (B, S, M) each
         anchors = outputs.get("anchors")
         for layer in outputs["layers"]:
-            for term, value in self._layer_losses(layer["control_points"], layer["logits"], basis, targets, anchors).items():
+            for term, value in self._layer_losses(layer["control_points"], layer["logits"], bases, targets, anchors).items():
                 losses[term] = losses[term] + value
         if self.weights["temporal"] and "temporal" in outputs:
             temporal = outputs["temporal"]
@@ -81,11 +81,12 @@ class SparseLaneSTPLoss(nn.Module):
         return losses
 
     def _layer_losses(
-        self, points: Tensor, logits: Tensor, basis: Tensor, targets: Mapping[str, Tensor], anchors: Tensor | None
-    ) -> dict[str, Tensor]:
+        self, points: Tensor, logits: Tensor, bases: tuple[Tensor, Tensor], targets: Mapping[str, Tensor],
+        anchors: Tensor | None,
+    ) -> dict[str, Tensor]:  # fmt: skip
         """Matching, detection losses and spatial priors of one decoder layer's output."""
         B, N = logits.shape[:2]
-        curves = (basis[:, None] if basis.dim() == 3 else basis) @ points  # (B, N, S, 4)
+        curves = sample_lanes(points, bases)  # (B, N, S, 4)
         matches = self.matcher(logits, curves, targets, anchors)
         batch = torch.cat([torch.full_like(pred, b) for b, (pred, _) in enumerate(matches)])
         pred = torch.cat([pred for pred, _ in matches])
@@ -108,14 +109,10 @@ class SparseLaneSTPLoss(nn.Module):
             losses["curvature"] = curvature_excess(points, lines, self.max_curvature)
         return losses
 
-    def _basis(self, y: Tensor) -> Tensor:
-        """(..., S, M) matrix A with curve(y) = A @ P at longitudinal positions y (..., S)."""
+    def _bases(self, y: Tensor) -> tuple[Tensor, Tensor]:
+        """The bases (..., S, M) of geometry and visibility (``heads.lane_bases``) at longitudinal
+        positions y (..., S)."""
         s = curve_arguments(y, *self.y_range)
         if not bool(((s >= -1e-6) & (s <= 1 + 1e-6)).all()):
             raise ValueError(f"the ground-truth y grid must lie inside the control points' y range {self.y_range}")
-        if self.representation == "catmull_rom":
-            return sampling_matrix(self.num_control_points, s)
-        # Discrete: hat functions, i.e. linear interpolation between neighbouring points.
-        u = s.clamp(0, 1) * (self.num_control_points - 1)
-        knots = torch.arange(self.num_control_points, dtype=s.dtype, device=s.device)
-        return (1 - (u[..., None] - knots).abs()).clamp(min=0)
+        return lane_bases(self.representation, self.num_control_points, s)
