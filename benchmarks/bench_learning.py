@@ -30,6 +30,7 @@ import os
 import platform
 import shutil
 import statistics
+import sys
 import time
 from pathlib import Path
 
@@ -105,7 +106,7 @@ def run_one(model: str, seed: int, stores: tuple[Path, Path], args: argparse.Nam
     """Train one model with one seed, read its curves, score its checkpoint on the held-out store."""
     run = args.out / model / f"seed{seed}"
     began = time.monotonic()
-    train(load_train_config([
+    fit = train(load_train_config([
         "experiment=demo", f"model={model}", f"seed={seed}", f"data.store={stores[0]}", f"paths.output_dir={run}",
         f"trainer.max_steps={args.max_steps}", f"trainer.max_time={args.max_time}", "trainer.max_epochs=-1",
         f"trainer.val_check_interval={args.val_every}", "trainer.check_val_every_n_epoch=null", *overrides,
@@ -116,7 +117,7 @@ def run_one(model: str, seed: int, stores: tuple[Path, Path], args: argparse.Nam
     prior = report.get(REFERENCE_KEY, {}).get("overall")
     return {
         "model": model, "seed": seed, "seconds": seconds,
-        "steps": max((s for values in curves.values() for s in values[0]), default=0),
+        "steps": int(fit["train/steps"]),
         "heldout": {key: report["overall"].get(key) for key in SCORES},
         "blind_prior": None if prior is None else {key: prior.get(key) for key in SCORES},
         "curves": curves,
@@ -213,8 +214,6 @@ def _row(name: str, seed: str, steps: str, minutes: str, scores: dict) -> str:
 
 
 def command_line() -> str:
-    import sys
-
     return "python " + " ".join(["benchmarks/bench_learning.py", *sys.argv[1:]])
 
 
