@@ -17,10 +17,10 @@ from lanelab.demo import main
 MARGIN = 0.05  # F1 points (as a fraction) above the prior that count as learning
 SMALL = [
     "demo.synth=['camera.width=128','camera.height=96','fps=5','workers=2']",
-    "demo.train_logs=['num_logs=4','duration_s=8','seed=1']",
+    "demo.train_logs=['num_logs=20','duration_s=2','seed=1']",  # many short drives, as the demo's
     "demo.test_logs.fog=['num_logs=1','duration_s=4','seed=101','world.weather=fog']",
     "demo.test_logs.traffic=['num_logs=1','duration_s=4','seed=102']",
-    "demo.ingest_train=['split.by=clip','split.train=0.5','split.val=0.5','split.test=0.0','clips.max_length_s=4']",
+    "demo.ingest_train=['split.by=clip','split.train=0.8','split.val=0.2','split.test=0.0','clips.max_length_s=4']",
     "trainer.max_steps=400", "trainer.max_time=null", "evaluation.num_pictures=0",
 ]  # fmt: skip
 

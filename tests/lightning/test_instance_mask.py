@@ -64,3 +64,22 @@ def test_the_loss_matches_masks_to_lanes_and_rewards_the_right_ones():
     torch.testing.assert_close(bad["total"], 2.0 * bad["dice"] + 5.0 * bad["bce"])
     bad["total"].backward()
     assert bad["dice"] > 0.5 and (logits.grad.flatten(2).abs().sum(-1) > 0).sum() == 2  # two matched masks
+
+
+def test_given_matches_pair_masks_with_the_detection_losss_lanes():
+    """With the detection loss's pairs (line 0 <-> lane 1, line 2 <-> lane 0) the masks are
+    scored against those lanes, not re-matched by their dice cost; an unmatched line pays nothing."""
+    t = targets([-1.75, 1.75])
+    gt = render(t)[0, :2].float()
+    loss = InstanceMaskLoss(dice_weight=2.0, bce_weight=5.0)
+    camera = torch.tensor(K, dtype=torch.float32)[None], torch.tensor(T_LANE_CAM, dtype=torch.float32)[None]
+    drawn = torch.full((1, 3, *MASK), -20.0)
+    drawn[0, 0], drawn[0, 2] = 40 * gt[1] - 20, 40 * gt[0] - 20
+    matches = [(torch.tensor([0, 2]), torch.tensor([1, 0]))]
+    assert loss(drawn, t, *camera, (HEIGHT, WIDTH), matches)["dice"] < 1e-6
+    swapped = [(torch.tensor([0, 2]), torch.tensor([0, 1]))]
+    assert loss(drawn, t, *camera, (HEIGHT, WIDTH), swapped)["dice"] > 0.9  # the dice cost alone would swap back
+    assert loss(drawn, t, *camera, (HEIGHT, WIDTH))["dice"] < 1e-6
+    logits = torch.zeros(1, 3, *MASK, requires_grad=True)
+    loss(logits, t, *camera, (HEIGHT, WIDTH), [(torch.tensor([1]), torch.tensor([0]))])["total"].backward()
+    assert (logits.grad.flatten(2).abs().sum(-1)[0] > 0).tolist() == [False, True, False]

@@ -107,7 +107,9 @@ def test_every_term_is_finite_and_has_gradient():
                          torch.arange(1, 3).repeat_interleave(3 * M).expand(2, -1))  # fmt: skip
     outputs = {"layers": layers, "temporal": {"current": layers[-1]["control_points"], "propagated_memory": memory}}
     losses = criterion(max_curvature=0.01)(outputs, targets)
-    assert set(losses) == set(TERMS) | {"total"}
+    assert set(losses) == set(TERMS) | {"total", "matches"}
+    # The last layer's pairs, one (line, lane) pair per real lane of each image (G <= N).
+    assert [len(pred) for pred, _ in losses["matches"]] == targets["gt_mask"].sum(-1).tolist()
     for term in TERMS:
         value = losses[term]
         assert value.isfinite() and value > 0, term

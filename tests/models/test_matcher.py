@@ -108,3 +108,23 @@ def test_matching_on_anchors_pairs_lanes_with_the_nearest_anchors_whatever_the_l
         matcher(logits, curves, targets, None)
     with pytest.raises(ValueError, match="match_on"):
         HungarianMatcher(match_on="nearest")
+
+
+def test_a_lane_far_from_every_free_anchor_is_no_lines_target():
+    """Anchors at -1.75 and 1.75 m; lanes at -1.5, 2.1 and 7.0 m. Without a threshold the third
+    lane takes the only line left however far it is (every lane is matched when G <= N); with
+    max_anchor_distance = 2 m it is dropped, the line stays background, and the near lanes keep
+    their anchors."""
+    S = 10
+    y = torch.linspace(3, 48, S)
+    x = torch.tensor([-1.5, 2.1, 7.0])[:, None].expand(3, S)
+    targets = {
+        "gt_y": y, "gt_x": x[None], "gt_z": torch.zeros(1, 3, S), "gt_vis": torch.ones(1, 3, S),
+        "gt_category": torch.full((1, 3), 2), "gt_mask": torch.ones(1, 3, dtype=torch.bool),
+    }  # fmt: skip
+    anchors = torch.tensor([-1.75, 1.75, 12.0])
+    logits, curves = torch.zeros(1, 3, BACKGROUND_INDEX + 1), torch.zeros(1, 3, S, 4)
+    ((pred, gt),) = HungarianMatcher(match_on="anchors")(logits, curves, targets, anchors)
+    assert dict(zip(gt.tolist(), pred.tolist())) == {0: 0, 1: 1, 2: 2}  # 5 m from its line
+    ((pred, gt),) = HungarianMatcher(match_on="anchors", max_anchor_distance=2.0)(logits, curves, targets, anchors)
+    assert dict(zip(gt.tolist(), pred.tolist())) == {0: 0, 1: 1}

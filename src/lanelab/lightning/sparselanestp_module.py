@@ -15,8 +15,9 @@ is not ``padding`` (a repeat the samplers add to fill batches).
 The loss is the criterion's (:class:`lanelab.models.losses.SparseLaneSTPLoss`: detection
 losses with deep supervision over all decoder layers, spatial priors, the temporal regulariser
 of eq. 12-13) plus the query generator's auxiliary instance-mask loss
-(:class:`lanelab.models.losses.InstanceMaskLoss`); this module only adapts the model's stacked
-outputs to their inputs (:func:`criterion_inputs`). Hydra builds the module from
+(:class:`lanelab.models.losses.InstanceMaskLoss`), which pairs each line's mask with the lane the
+detection loss gave that line (as LATR trains both on one assignment); this module only adapts
+the model's stacked outputs to their inputs (:func:`criterion_inputs`). Hydra builds the module from
 ``conf/model/*.yaml``; it holds no defaults of its own.
 """
 
@@ -155,7 +156,10 @@ class SparseLaneSTPModule(pl.LightningModule):
         targets = {key: batch[key][scored] for key in TARGET_KEYS}
         losses = self.criterion(criterion_inputs(outputs, scored), targets)
         camera = batch["K"][scored, -1], batch["T_lane_cam"][scored, -1]
-        masks = self.mask_criterion(outputs["masks"][scored], targets, *camera, tuple(batch["images"].shape[-2:]))
+        # Each line's instance mask is the lane its control points are trained on (LATR pairs both alike).
+        masks = self.mask_criterion(
+            outputs["masks"][scored], targets, *camera, tuple(batch["images"].shape[-2:]), losses["matches"]
+        )
         total = losses["total"] + masks["total"]
         logged = {"train/loss": total, "train/loss_mask_dice": masks["dice"], "train/loss_mask_bce": masks["bce"]}
         logged.update({f"train/loss_{term}": losses[term] for term, w in self.criterion.weights.items() if w})

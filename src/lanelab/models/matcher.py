@@ -16,6 +16,10 @@ visible samples nearer than ``near_range`` m (all visible samples for a lane tha
 further away). Matching on predictions is DETR's way and needs good predictions to be stable;
 early in training they are not, a lane goes to a different line from step to step, and every
 line learns the mean lane layout. Matching on anchors gives each line the same lane every step.
+With ``max_anchor_distance`` (Anchor3DLane's positive threshold) a pair whose anchor cost exceeds
+it is dropped: the lane is then no line's target, and the line is background. Without it every
+lane goes to some line however far, and a line's targets jump between lanes metres apart, which
+teaches it the median of its neighbourhood and a class that says nothing about the image.
 """
 
 from __future__ import annotations
@@ -35,7 +39,8 @@ MATCH_ON = ("predictions", "anchors")
 class HungarianMatcher(nn.Module):
     """cost_class, cost_reg, cost_vis: weights of the three pair costs; gamma: focal parameter;
     match_on: "predictions" (DETR) or "anchors" (the lines' lateral anchors, module doc);
-    near_range: metres of the anchor cost."""
+    near_range: metres of the anchor cost; max_anchor_distance: metres of anchor cost above which
+    a pair is dropped (match_on="anchors"), None: keep every pair."""
 
     def __init__(
         self,
@@ -45,12 +50,14 @@ class HungarianMatcher(nn.Module):
         gamma: float = 2.0,
         match_on: str = "predictions",
         near_range: float = 30.0,
+        max_anchor_distance: float | None = None,
     ):
         super().__init__()
         if match_on not in MATCH_ON:
             raise ValueError(f"match_on must be one of {MATCH_ON}, got {match_on!r}")
         self.cost_class, self.cost_reg, self.cost_vis, self.gamma = cost_class, cost_reg, cost_vis, gamma
         self.match_on, self.near_range = match_on, near_range
+        self.max_anchor_distance = max_anchor_distance
 
     @torch.no_grad()
     def forward(
@@ -70,6 +77,9 @@ class HungarianMatcher(nn.Module):
         for cost_b, real in zip(cost, targets["gt_mask"].cpu()):  # the solver is per image
             gt_index = real.nonzero()[:, 0]
             rows, cols = linear_sum_assignment(cost_b[:, gt_index].numpy())
+            if self.match_on == "anchors" and self.max_anchor_distance is not None:
+                close = cost_b[rows, gt_index[cols]].numpy() <= self.max_anchor_distance
+                rows, cols = rows[close], cols[close]
             matches.append((torch.as_tensor(rows, dtype=torch.long), gt_index[torch.as_tensor(cols, dtype=torch.long)]))
         device = pred_logits.device
         return [(pred.to(device), gt.to(device)) for pred, gt in matches]

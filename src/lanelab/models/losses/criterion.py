@@ -64,13 +64,16 @@ class SparseLaneSTPLoss(nn.Module):
         and "anchors": the lines' lateral anchors (N,) (for HungarianMatcher(match_on="anchors"));
         targets: the collated dataset batch: gt_y (S,) or (B, S), gt_x / gt_z / gt_vis (B, G, S),
         gt_category (B, G) OpenLane ids, gt_mask (B, G).
-        Returns every term of TERMS (summed over layers) and "total", the weighted sum."""
+        Returns every term of TERMS (summed over layers), "total", the weighted sum, and
+        "matches": the last layer's (line index, lane index) pairs per image, for auxiliary
+        losses that must pair lines and lanes alike (the instance masks)."""
         first = outputs["layers"][0]["control_points"]
         losses = {term: first.new_zeros(()) for term in TERMS}
         bases = self._bases(targets["gt_y"].to(first))  # (S, M) or (B, S, M) each
         anchors = outputs.get("anchors")
         for layer in outputs["layers"]:
-            for term, value in self._layer_losses(layer["control_points"], layer["logits"], bases, targets, anchors).items():
+            layer_losses, matches = self._layer_losses(layer["control_points"], layer["logits"], bases, targets, anchors)
+            for term, value in layer_losses.items():
                 losses[term] = losses[term] + value
         if self.weights["temporal"] and "temporal" in outputs:
             temporal = outputs["temporal"]
@@ -78,13 +81,13 @@ class SparseLaneSTPLoss(nn.Module):
                 temporal["current"], temporal["propagated_memory"], self.temporal_alpha, self.temporal_max_distance
             )
         losses["total"] = sum(self.weights[term] * losses[term] for term in TERMS)
-        return losses
+        return {**losses, "matches": matches}
 
     def _layer_losses(
         self, points: Tensor, logits: Tensor, bases: tuple[Tensor, Tensor], targets: Mapping[str, Tensor],
         anchors: Tensor | None,
-    ) -> dict[str, Tensor]:  # fmt: skip
-        """Matching, detection losses and spatial priors of one decoder layer's output."""
+    ) -> tuple[dict[str, Tensor], list[tuple[Tensor, Tensor]]]:  # fmt: skip
+        """Matching, detection losses and spatial priors of one decoder layer's output, and its matches."""
         B, N = logits.shape[:2]
         curves = sample_lanes(points, bases)  # (B, N, S, 4)
         matches = self.matcher(logits, curves, targets, anchors)
@@ -107,7 +110,7 @@ class SparseLaneSTPLoss(nn.Module):
             losses["parallel"], losses["surface"] = parallelism_and_surface(points, lines)
         if self.weights["curvature"]:
             losses["curvature"] = curvature_excess(points, lines, self.max_curvature)
-        return losses
+        return losses, matches
 
     def _bases(self, y: Tensor) -> tuple[Tensor, Tensor]:
         """The bases (..., S, M) of geometry and visibility (``heads.lane_bases``) at longitudinal

@@ -6,7 +6,9 @@ signal of its own and the N proposals start out as near-copies of one another. A
 SparseInst branch, each ground-truth lane is drawn as a mask at the resolution of the predicted
 instance masks, predictions and lanes are paired by Hungarian matching on the dice cost, and
 the matched pairs pay a dice loss and a per-pixel binary cross-entropy (unmatched masks pay
-nothing). LATR weighs them 2 (dice) and 5 (BCE).
+nothing). LATR weighs them 2 (dice) and 5 (BCE). Given the detection loss's pairs, the masks use
+those instead: a line whose mask follows one lane while its control points are trained on
+another learns a fixed template rather than to find its lane in the image.
 
 Ground-truth masks: the lane's visible samples (the ``gt_*`` grid) projected into the image,
 joined by straight segments, each mask cell a segment passes marked 1.
@@ -14,7 +16,7 @@ joined by straight segments, each mask cell a segment passes marked 1.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import torch
 import torch.nn.functional as F
@@ -67,12 +69,13 @@ class InstanceMaskLoss(nn.Module):
 
     def forward(
         self, mask_logits: Tensor, targets: Mapping[str, Tensor], K: Tensor, T_lane_cam: Tensor,
-        image_size: tuple[int, int],
+        image_size: tuple[int, int], matches: Sequence[tuple[Tensor, Tensor]] | None = None,
     ) -> dict[str, Tensor]:  # fmt: skip
         """mask_logits (B, N, h, w); targets: gt_y (B, S), gt_x / gt_z / gt_vis (B, G, S),
         gt_mask (B, G); K (B, 3, 3), T_lane_cam (B, 4, 4) of the current frame, whose images
-        have image_size (H, W). Returns "dice", "bce" (means over the matched pairs) and "total",
-        their weighted sum."""
+        have image_size (H, W); matches: per image (line index, lane index) pairs to use, e.g.
+        the detection loss's, or None: pair by the dice cost. Returns "dice", "bce" (means over
+        the matched pairs) and "total", their weighted sum."""
         x = targets["gt_x"]
         points = torch.stack([x, targets["gt_y"][:, None].expand_as(x), targets["gt_z"]], dim=-1)
         masks = lane_masks(points, targets["gt_vis"] > 0.5, K, T_lane_cam, image_size, tuple(mask_logits.shape[-2:]))
@@ -80,9 +83,12 @@ class InstanceMaskLoss(nn.Module):
         cost = dice_cost(logits.sigmoid(), masks)  # (B, N, G)
         dice, bce = [], []
         for b, real in enumerate(targets["gt_mask"]):  # the solver is per image
-            lanes = real.nonzero()[:, 0]
-            rows, columns = linear_sum_assignment(cost[b][:, lanes].detach().cpu().numpy())
-            pred, gt = torch.as_tensor(rows, device=cost.device), lanes[torch.as_tensor(columns, device=cost.device)]
+            if matches is not None:
+                pred, gt = (index.to(cost.device) for index in matches[b])
+            else:
+                lanes = real.nonzero()[:, 0]
+                rows, columns = linear_sum_assignment(cost[b][:, lanes].detach().cpu().numpy())
+                pred, gt = torch.as_tensor(rows, device=cost.device), lanes[torch.as_tensor(columns, device=cost.device)]
             dice.append(cost[b, pred, gt])
             bce.append(F.binary_cross_entropy_with_logits(logits[b, pred], masks[b, gt], reduction="none").mean(-1))
         dice, bce = torch.cat(dice), torch.cat(bce)
