@@ -121,8 +121,10 @@ def _number(value: float | None, scale: float, digits: int) -> str:
 
 
 def best_checkpoint(run: Path) -> Path:
-    """The run's best checkpoint (the callback keeps one), else its last."""
-    return next((run / "checkpoints").glob("epoch*.ckpt"), run / "checkpoints" / "last.ckpt")
+    """The run's best checkpoint (the callback keeps one per run; of a folder trained into
+    again, the newest), else its last."""
+    best = sorted((run / "checkpoints").glob("epoch*.ckpt"), key=lambda path: path.stat().st_mtime)
+    return best[-1] if best else run / "checkpoints" / "last.ckpt"
 
 
 def _tool(name: str, *overrides: str) -> None:

@@ -1,11 +1,12 @@
 """lanelab-demo end to end at a miniature scale: synthesize, ingest, train both models,
 evaluate them on held-out drives, print and write the comparison."""
 
+import os
 from pathlib import Path
 
 import pytest
 
-from lanelab.demo import COMPARISON_MD, main
+from lanelab.demo import COMPARISON_MD, best_checkpoint, main
 
 MINIATURE = [
     "demo.synth=['camera.width=96','camera.height=64','fps=5','workers=1']",
@@ -24,3 +25,15 @@ def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     for model in ("sparselanestp", "latr_baseline"):
         assert (tmp_path / model / "heldout" / "pictures.png").is_file()
     assert "report and pictures in" in capsys.readouterr().out
+
+
+def test_best_checkpoint_is_the_newest_best_of_a_folder_trained_into_again(tmp_path: Path) -> None:
+    """A second demo run into the same folder keeps the first run's best file beside its own:
+    the newest is evaluated, not whichever the file system lists first."""
+    checkpoints = tmp_path / "checkpoints"
+    checkpoints.mkdir()
+    assert best_checkpoint(tmp_path) == checkpoints / "last.ckpt"  # no best yet
+    for index, name in enumerate(["epoch002-step0001500.ckpt", "epoch000-step0000055.ckpt"]):
+        (checkpoints / name).write_bytes(b"")
+        os.utime(checkpoints / name, (1_000_000 + index, 1_000_000 + index))
+    assert best_checkpoint(tmp_path) == checkpoints / "epoch000-step0000055.ckpt"
