@@ -30,6 +30,12 @@ def render(t: dict[str, torch.Tensor]) -> torch.Tensor:
     return lane_masks(points, t["gt_vis"] > 0.5, *camera, (HEIGHT, WIDTH), MASK)
 
 
+def loss_and_camera() -> tuple[InstanceMaskLoss, tuple[torch.Tensor, torch.Tensor]]:
+    """LATR's weights; the tiny camera's K and T_lane_cam as float32 batches of one."""
+    camera = torch.tensor(K, dtype=torch.float32)[None], torch.tensor(T_LANE_CAM, dtype=torch.float32)[None]
+    return InstanceMaskLoss(dice_weight=2.0, bce_weight=5.0), camera
+
+
 def test_masks_mark_the_cells_the_lanes_are_seen_in():
     masks = render(targets([-1.75, 1.75]))
     assert masks.shape == (1, 3, *MASK) and masks[0, 2].sum() == 0  # the padding row stays empty
@@ -51,8 +57,7 @@ def test_hidden_samples_are_not_drawn():
 def test_the_loss_matches_masks_to_lanes_and_rewards_the_right_ones():
     t = targets([-1.75, 1.75])
     gt = render(t)[0, :2].float()
-    loss = InstanceMaskLoss(dice_weight=2.0, bce_weight=5.0)
-    camera = torch.tensor(K, dtype=torch.float32)[None], torch.tensor(T_LANE_CAM, dtype=torch.float32)[None]
+    loss, camera = loss_and_camera()
     # Proposals 3 and 1 draw the two lanes (in the other order), 0 and 2 draw nothing.
     perfect = torch.full((1, 4, *MASK), -20.0)
     perfect[0, 3], perfect[0, 1] = 40 * gt[0] - 20, 40 * gt[1] - 20
@@ -71,8 +76,7 @@ def test_given_matches_pair_masks_with_the_detection_losss_lanes():
     scored against those lanes, not re-matched by their dice cost; an unmatched line pays nothing."""
     t = targets([-1.75, 1.75])
     gt = render(t)[0, :2].float()
-    loss = InstanceMaskLoss(dice_weight=2.0, bce_weight=5.0)
-    camera = torch.tensor(K, dtype=torch.float32)[None], torch.tensor(T_LANE_CAM, dtype=torch.float32)[None]
+    loss, camera = loss_and_camera()
     drawn = torch.full((1, 3, *MASK), -20.0)
     drawn[0, 0], drawn[0, 2] = 40 * gt[1] - 20, 40 * gt[0] - 20
     matches = [(torch.tensor([0, 2]), torch.tensor([1, 0]))]
