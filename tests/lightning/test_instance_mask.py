@@ -71,7 +71,7 @@ def test_the_loss_matches_masks_to_lanes_and_rewards_the_right_ones():
     assert bad["dice"] > 0.5 and (logits.grad.flatten(2).abs().sum(-1) > 0).sum() == 2  # two matched masks
 
 
-def test_given_matches_pair_masks_with_the_detection_losss_lanes():
+def test_given_matches_pair_masks_as_the_detection_loss_paired_them():
     """With the detection loss's pairs (line 0 <-> lane 1, line 2 <-> lane 0) the masks are
     scored against those lanes, not re-matched by their dice cost; an unmatched line pays nothing."""
     t = targets([-1.75, 1.75])

@@ -128,3 +128,5 @@ def test_a_lane_far_from_every_free_anchor_is_no_lines_target():
     assert dict(zip(gt.tolist(), pred.tolist())) == {0: 0, 1: 1, 2: 2}  # 5 m from its line
     ((pred, gt),) = HungarianMatcher(match_on="anchors", max_anchor_distance=2.0)(logits, curves, targets, anchors)
     assert dict(zip(gt.tolist(), pred.tolist())) == {0: 0, 1: 1}
+    with pytest.raises(ValueError, match="max_anchor_distance"):  # it would be silently ignored
+        HungarianMatcher(match_on="predictions", max_anchor_distance=2.0)

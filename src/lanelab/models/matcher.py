@@ -55,6 +55,8 @@ class HungarianMatcher(nn.Module):
         super().__init__()
         if match_on not in MATCH_ON:
             raise ValueError(f"match_on must be one of {MATCH_ON}, got {match_on!r}")
+        if max_anchor_distance is not None and match_on != "anchors":
+            raise ValueError(f'max_anchor_distance needs match_on="anchors" (got {match_on!r}); set it to null')
         self.cost_class, self.cost_reg, self.cost_vis, self.gamma = cost_class, cost_reg, cost_vis, gamma
         self.match_on, self.near_range = match_on, near_range
         self.max_anchor_distance = max_anchor_distance
@@ -77,7 +79,7 @@ class HungarianMatcher(nn.Module):
         for cost_b, real in zip(cost, targets["gt_mask"].cpu()):  # the solver is per image
             gt_index = real.nonzero()[:, 0]
             rows, cols = linear_sum_assignment(cost_b[:, gt_index].numpy())
-            if self.match_on == "anchors" and self.max_anchor_distance is not None:
+            if self.max_anchor_distance is not None:
                 close = cost_b[rows, gt_index[cols]].numpy() <= self.max_anchor_distance
                 rows, cols = rows[close], cols[close]
             matches.append((torch.as_tensor(rows, dtype=torch.long), gt_index[torch.as_tensor(cols, dtype=torch.long)]))
