@@ -39,6 +39,7 @@ _COMMON = dict(
     dropout=0.1, attention="sparse", use_sla=True, use_pna=True, use_tca=True, pna_neighbors=2,
     tca_neighbors=10, num_classes=NUM_LANE_CATEGORIES, x_range=(-30.0, 30.0), y_range=(3.0, 103.0),
     z_range=(-5.0, 5.0), representation="catmull_rom", head_hidden_layers=2, ground_encoding=True, anchor_span=12.25, dca_content_weights=True,
+    lateral_search={"num_candidates": 9, "search_range": 2.0},
 )  # fmt: skip
 CONFIGS = {
     "paper": dict(

@@ -146,3 +146,29 @@ def test_collate_stacks_and_pads_lanes(tmp_path):
     assert batch["clip_id"] == ["clip00", "clip00"] and len(batch["tags"]) == 2
     with pytest.raises(ValueError, match="max_lanes=1"):
         collate_samples([dataset[2]], max_lanes=1)
+
+
+def test_a_flipped_sample_is_the_mirror_image_with_its_lanes_and_cameras_mirrored(tmp_path):
+    """A mirrored sample: images flipped left to right, lanes at -x with left and right categories
+    swapped, and cameras and poses reflected so that a lane point still projects onto the same
+    image content: pixel column u of the original becomes W - u."""
+    store = build_store(tmp_path, {"train": [5]})
+    dataset = make_dataset(store, num_frames=2)
+    plain, mirrored = (dataset[SampleKey(3, (1, 0), True, False, flip)] for flip in (False, True))
+    torch.testing.assert_close(mirrored["images"], plain["images"].flip(-1))
+    torch.testing.assert_close(mirrored["gt_x"], -plain["gt_x"])
+    torch.testing.assert_close(mirrored["gt_ctrl"][..., 0], -plain["gt_ctrl"][..., 0])
+    point = torch.stack([plain["gt_x"][0, 5], plain["gt_y"][5], plain["gt_z"][0, 5]]).double()[None]
+    uv, _, _ = project_lane_points(point, plain["K"][-1].double(), plain["T_lane_cam"][-1].double())
+    flipped = point * torch.tensor([-1.0, 1.0, 1.0], dtype=torch.float64)
+    uv_m, _, _ = project_lane_points(flipped, mirrored["K"][-1].double(), mirrored["T_lane_cam"][-1].double())
+    torch.testing.assert_close(uv_m[0], torch.stack([WIDTH - uv[0, 0], uv[0, 1]]), rtol=0, atol=1e-4)
+    # The ego motion between the two frames is the mirror image too: still straight ahead here.
+    motion = torch.linalg.inv(mirrored["T_world_lane"][1]) @ mirrored["T_world_lane"][0]
+    torch.testing.assert_close(motion, torch.linalg.inv(plain["T_world_lane"][1]) @ plain["T_world_lane"][0])
+
+
+def test_mirrored_categories_swap_sides_and_keep_the_rest():
+    from lanelab.data.mirror import mirror_categories
+
+    assert mirror_categories(np.array([1, 5, 6, 11, 12, 20, 21, 8])).tolist() == [1, 6, 5, 12, 11, 21, 20, 8]

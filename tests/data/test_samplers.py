@@ -181,3 +181,20 @@ def test_rank_defaults_without_torch_distributed():
     assert resolve_rank(2, 3) == (2, 3)
     with pytest.raises(ValueError, match="outside"):
         resolve_rank(3, 3)
+
+
+def test_flips_are_drawn_per_window_and_per_stream_piece():
+    """With flip=True about half the windows are mirrored; a stream mirrors each clip piece as a
+    whole (the memory never sees both sides of one drive), and only where a piece starts does the
+    choice change. Without it nothing is mirrored."""
+    index = make_index(CLIP_LENGTHS * 20)
+    (windows,) = epoch_of(WindowSampler, 1, index=index, batch_size=4, num_frames=2, flip=True)
+    flips = [key.flip for batch in windows for key in batch]
+    assert 0.35 < np.mean(flips) < 0.65
+    (steps,) = epoch_of(StreamSampler, 1, index=index, batch_size=4, flip=True)
+    streams = list(zip(*steps))
+    changes = [(b.flip != a.flip) for stream in streams for a, b in zip(stream, stream[1:]) if not b.padding]
+    starts = [b.reset for stream in streams for a, b in zip(stream, stream[1:]) if not b.padding]
+    assert any(changes) and all(start for change, start in zip(changes, starts) if change)
+    (plain,) = epoch_of(StreamSampler, 1, index=index, batch_size=4)
+    assert not any(key.flip for batch in plain for key in batch)

@@ -130,3 +130,23 @@ def test_a_lane_far_from_every_free_anchor_is_no_lines_target():
     assert dict(zip(gt.tolist(), pred.tolist())) == {0: 0, 1: 1}
     with pytest.raises(ValueError, match="max_anchor_distance"):  # it would be silently ignored
         HungarianMatcher(match_on="predictions", max_anchor_distance=2.0)
+
+
+def test_one_to_many_gives_a_lane_every_anchor_near_it_and_a_lone_lane_its_nearest_free_one():
+    """Anchor3DLane's assignment (positive_distance = 1 m), anchors at -3, -1, 1, 3 m: the lane at
+    -1.2 m takes the anchor at -1; the lane at 2 m both anchors 1 m away; the lane at -4.5 m has
+    none within 1 m and takes the nearest free one within max_anchor_distance (-3); the lane at
+    8 m is 5 m from every anchor and stays unassigned."""
+    S = 10
+    y = torch.linspace(3, 30, S)
+    x = torch.tensor([-1.2, 2.0, -4.5, 8.0])[:, None].expand(4, S)
+    targets = {
+        "gt_y": y, "gt_x": x[None], "gt_z": torch.zeros(1, 4, S), "gt_vis": torch.ones(1, 4, S),
+        "gt_category": torch.full((1, 4), 2), "gt_mask": torch.ones(1, 4, dtype=torch.bool),
+    }  # fmt: skip
+    anchors = torch.tensor([-3.0, -1.0, 1.0, 3.0])
+    logits, curves = torch.zeros(1, 4, BACKGROUND_INDEX + 1), torch.zeros(1, 4, S, 4)
+    matcher = HungarianMatcher(match_on="anchors", max_anchor_distance=2.0, positive_distance=1.0)
+    ((pred, gt),) = matcher(logits, curves, targets, anchors)
+    pairs = sorted(zip(pred.tolist(), gt.tolist()))
+    assert pairs == [(0, 2), (1, 0), (2, 1), (3, 1)]

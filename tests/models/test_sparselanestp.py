@@ -17,6 +17,7 @@ TINY = dict(
     num_memory_frames=2, num_memory_lines=2,
     num_classes=NUM_LANE_CATEGORIES, x_range=(-10.0, 10.0), y_range=(3.0, 103.0), z_range=(-2.0, 3.0),
     representation="catmull_rom", head_hidden_layers=2, ground_encoding=True, anchor_span=5.25, dca_content_weights=True,
+    lateral_search={"num_candidates": 5, "search_range": 2.0},
 )  # fmt: skip
 BASELINE = {**TINY, "num_memory_frames": 0, "attention": "global", "representation": "discrete"}
 

@@ -47,8 +47,16 @@ from lanelab.data.augment import PhotometricAugment
 from lanelab.data.clip_store import ClipStore
 from lanelab.data.frame_index import FrameIndex, SampleKey, consecutive_offsets
 from lanelab.data.image_codec import decode_image
+from lanelab.data.mirror import mirror_categories, mirror_intrinsics, mirror_transforms
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
+
+
+def mirror_targets(targets: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Lane targets (:class:`LaneTargets` output) of the left-right mirrored frame."""
+    ctrl = targets["gt_ctrl"].copy()
+    ctrl[..., 0] *= -1
+    return {**targets, "gt_x": -targets["gt_x"], "gt_ctrl": ctrl, "gt_category": mirror_categories(targets["gt_category"])}
 
 
 class ClipDataset(Dataset):
@@ -103,16 +111,23 @@ class ClipDataset(Dataset):
         # Padding repeats a frame: decode and resize each distinct frame once.
         prepared = {p: self.resize(decode_image(records[p - first]), records[p - first].K) for p in set(positions)}
         images = np.stack([prepared[p][0] for p in positions])  # (F, H, W, 3) uint8
-        if self.augment is not None:
-            images = self.augment(images)
-        # Channels first while still uint8 (4x fewer bytes to move), then normalise in place.
-        images = torch.from_numpy(images).permute(0, 3, 1, 2).contiguous().float()
+        K = np.stack([prepared[p][1] for p in positions])
+        T_lane_cam, T_world_lane = (np.stack([getattr(f, name) for f in frames]) for name in ("T_lane_cam", "T_world_lane"))
         now = frames[-1]
+        targets = self.targets(now.lanes)
+        if key.flip:
+            images, K = images[:, :, ::-1], mirror_intrinsics(K, images.shape[2])
+            T_lane_cam, T_world_lane = mirror_transforms(T_lane_cam), mirror_transforms(T_world_lane)
+            targets = mirror_targets(targets)
+        if self.augment is not None:
+            images = self.augment(np.ascontiguousarray(images))
+        # Channels first while still uint8 (4x fewer bytes to move), then normalise in place.
+        images = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).contiguous().float()
         return {
             "images": images.sub_(self.mean).div_(self.std),
-            "K": torch.from_numpy(np.stack([prepared[p][1] for p in positions])).float(),
-            "T_lane_cam": torch.from_numpy(np.stack([f.T_lane_cam for f in frames])).float(),
-            "T_world_lane": torch.from_numpy(np.stack([f.T_world_lane for f in frames])).double(),
+            "K": torch.from_numpy(K).float(),
+            "T_lane_cam": torch.from_numpy(T_lane_cam).float(),
+            "T_world_lane": torch.from_numpy(T_world_lane).double(),
             "valid": torch.from_numpy(wanted >= 0),
             "labeled": torch.tensor([f.labeled for f in frames]),
             "timestamp_ns": torch.tensor([f.timestamp_ns for f in frames], dtype=torch.int64),
@@ -122,5 +137,5 @@ class ClipDataset(Dataset):
             "clip_id": clip_id,
             "tags": dict(now.tags),
             "gt_y": torch.from_numpy(self.targets.y).float(),
-            **{name: torch.from_numpy(value) for name, value in self.targets(now.lanes).items()},
+            **{name: torch.from_numpy(value) for name, value in targets.items()},
         }

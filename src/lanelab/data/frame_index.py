@@ -25,12 +25,15 @@ class SampleKey(NamedTuple):
     reset: the model's memory of earlier samples must be cleared before this one.
     padding: the sample repeats another only to keep ranks and streams the same length;
         metrics must skip it.
+    flip: mirror the sample left to right (training augmentation; the dataset mirrors the
+        images, cameras, poses and lanes alike).
     """
 
     frame: int
     offsets: tuple[int, ...]
     reset: bool
     padding: bool = False
+    flip: bool = False
 
 
 def consecutive_offsets(num_frames: int) -> tuple[int, ...]:

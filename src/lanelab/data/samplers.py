@@ -57,6 +57,7 @@ class _TemporalSampler(Sampler[SampleKey]):
         seed: int,
         rank: int | None,
         world_size: int | None,
+        flip: bool = False,
     ) -> None:
         if batch_size < 1 or num_frames < 1:
             raise ValueError(f"batch_size and num_frames must be >= 1, got {batch_size} and {num_frames}")
@@ -65,6 +66,7 @@ class _TemporalSampler(Sampler[SampleKey]):
         self.num_frames = num_frames
         self.seed = seed
         self.rank, self.world_size = resolve_rank(rank, world_size)
+        self.flip = flip
         self.epoch = 0
 
     def set_epoch(self, epoch: int) -> None:
@@ -122,8 +124,9 @@ class WindowSampler(_TemporalSampler):
         seed: int = 0,
         rank: int | None = None,
         world_size: int | None = None,
+        flip: bool = False,
     ) -> None:
-        super().__init__(index, batch_size, num_frames, seed, rank, world_size)
+        super().__init__(index, batch_size, num_frames, seed, rank, world_size, flip)
         if history not in ("nearest", "random"):
             raise ValueError(f"history must be 'nearest' or 'random', got {history!r}")
         if targets not in ("labeled", "all"):
@@ -162,10 +165,12 @@ class WindowSampler(_TemporalSampler):
         frames = order[np.arange(total) % len(order)]
         padding = np.arange(total) >= len(order)
         offsets = np.concatenate([self._past_offsets(rng, total), np.zeros((total, 1), int)], axis=1)
+        flips = (rng.random(total) < 0.5) & self.flip
 
         mine = np.arange(total).reshape(self.num_steps, self.world_size, self.batch_size)[:, self.rank]
         for step in mine:
-            yield [SampleKey(int(frames[i]), tuple(map(int, offsets[i])), True, bool(padding[i])) for i in step]
+            yield [SampleKey(int(frames[i]), tuple(map(int, offsets[i])), True, bool(padding[i]), bool(flips[i]))
+                   for i in step]  # fmt: skip
 
 
 class StreamSampler(_TemporalSampler):
@@ -208,8 +213,9 @@ class StreamSampler(_TemporalSampler):
         seed: int = 0,
         rank: int | None = None,
         world_size: int | None = None,
+        flip: bool = False,
     ) -> None:
-        super().__init__(index, batch_size, num_frames, seed, rank, world_size)
+        super().__init__(index, batch_size, num_frames, seed, rank, world_size, flip)
         self.offsets = consecutive_offsets(num_frames)
         self.split_clips = split_clips
         self.shuffle = shuffle
@@ -230,19 +236,25 @@ class StreamSampler(_TemporalSampler):
         streams = _longest_first(starts[order], lengths[order], self.num_streams)
         return [[s[i] for i in rng.permutation(len(s))] if self.shuffle else s for s in streams]
 
-    def _pass(self, pass_number: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """frames, reset, padding: (S, pass_length) int64 / bool / bool for one pass."""
+    def _pass(self, pass_number: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """frames, reset, padding, flip: (S, pass_length) int64 / bool / bool / bool for one pass.
+        A clip piece is mirrored as a whole (flip), so the memory never mixes both sides."""
         shape = (self.num_streams, self.pass_length)
         frames = np.zeros(shape, np.int64)
         reset = np.zeros(shape, bool)
         padding = np.ones(shape, bool)
+        flip = np.zeros(shape, bool)
+        flip_rng = self._rng(pass_number, 1)
         for s, ranges in enumerate(self._streams(pass_number)):
             lengths = [stop - start for start, stop in ranges]
             walk = np.concatenate([np.arange(start, stop) for start, stop in ranges] or [np.zeros(1, int)])
-            frames[s] = walk[np.minimum(np.arange(self.pass_length), len(walk) - 1)]
+            steps = np.minimum(np.arange(self.pass_length), len(walk) - 1)
+            frames[s] = walk[steps]
             reset[s, np.cumsum([0] + lengths[:-1])] = True
             padding[s, : sum(lengths)] = False
-        return frames, reset, padding
+            pieces = np.repeat((flip_rng.random(len(lengths)) < 0.5) & self.flip, lengths)
+            flip[s] = pieces[steps] if len(pieces) else False
+        return frames, reset, padding, flip
 
     def _steps(self) -> Iterator[list[SampleKey]]:
         start = self.epoch * self.num_steps
@@ -250,12 +262,12 @@ class StreamSampler(_TemporalSampler):
         begin = start - first_pass * self.pass_length
         mine = slice(self.rank * self.batch_size, (self.rank + 1) * self.batch_size)
         plan = [self._pass(p) for p in range(first_pass, last_pass + 1)]
-        frames, reset, padding = (
+        frames, reset, padding, flip = (
             np.concatenate(arrays, axis=1)[mine, begin : begin + self.num_steps].T for arrays in zip(*plan)
         )
         reset[0] = True  # memory does not carry over from the previous epoch (validation ran between)
-        for f, r, p in zip(frames, reset, padding):
-            yield [SampleKey(int(fi), self.offsets, bool(ri), bool(pi)) for fi, ri, pi in zip(f, r, p)]
+        for f, r, p, m in zip(frames, reset, padding, flip):
+            yield [SampleKey(int(fi), self.offsets, bool(ri), bool(pi), bool(mi)) for fi, ri, pi, mi in zip(f, r, p, m)]
 
 
 def _cut(starts: np.ndarray, lengths: np.ndarray, num_streams: int) -> list[list[tuple[int, int]]]:

@@ -19,6 +19,7 @@ from torch import Tensor
 
 from lanelab.metrics.openlane_metric import LaneBatch
 from lanelab.models.heads import BACKGROUND_INDEX, index_to_category
+from lanelab.models.lane_nms import suppress_duplicates
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 
@@ -83,18 +84,27 @@ def frame_path(clip_id: str, timestamp_ns: int) -> str:
     return f"{clip_id}/{timestamp_ns}.jpg"
 
 
-def predicted_lanes(net: SparseLaneSTP, outputs: Mapping[str, Any], y: Tensor, threshold: float) -> DenseLanes:
+def predicted_lanes(
+    net: SparseLaneSTP, outputs: Mapping[str, Any], y: Tensor, threshold: float, nms: tuple[float, float] | None = None
+) -> DenseLanes:
     """The last decoder layer's lanes at longitudinal positions y (S,), from the outputs of
-    ``net.forward`` / ``net.step`` (points (L, B, N, M, 4), logits (L, B, N, K + 1))."""
+    ``net.forward`` / ``net.step`` (points (L, B, N, M, 4), logits (L, B, N, K + 1)). A line
+    is a lane where a category outscores the background; nms = (distance, near range), metres:
+    lanes within that mean lateral distance of a more confident one over y <= near range are
+    dropped (models.lane_nms), None: none."""
     dense = net.decode(outputs, y)  # (B, N, S, 4)
     probability = outputs["logits"][-1].float().softmax(-1)
     score, index = probability[..., :BACKGROUND_INDEX].max(-1)
+    valid = probability.argmax(-1) != BACKGROUND_INDEX
+    if nms is not None:
+        distance, near = nms
+        valid = suppress_duplicates(dense[..., 0], score, valid, y <= near, distance)
     return DenseLanes(
         points=dense[..., :3],
         visibility=dense[..., 3],
         category=index_to_category(index),
         score=score,
-        valid=probability.argmax(-1) != BACKGROUND_INDEX,
+        valid=valid,
         threshold=threshold,
     )
 

@@ -85,6 +85,8 @@ class SparseLaneSTPModule(pl.LightningModule):
     backbone: {"weights": PATH or None}: a torchvision-layout ResNet state dict (e.g. ImageNet
     weights) loaded into the backbone when training starts; a resumed run's checkpoint, restored
     after it, overrides it, and evaluation from a checkpoint never reads it.
+    nms_distance: metres; predicted lanes within this mean lateral distance (over the metric's
+    close range) of a more confident one are dropped (models.lane_nms); None: no NMS.
     """
 
     def __init__(
@@ -102,6 +104,7 @@ class SparseLaneSTPModule(pl.LightningModule):
         min_lr: float,
         num_pictures: int,
         backbone: BackboneStart | None = None,
+        nms_distance: float | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters(ignore=["net", "criterion", "mask_criterion"])
@@ -114,6 +117,7 @@ class SparseLaneSTPModule(pl.LightningModule):
         self.warmup_steps, self.min_lr = warmup_steps, min_lr
         self.num_pictures = num_pictures
         self.backbone_weights = (backbone or {}).get("weights")
+        self.nms_distance = nms_distance
 
     def setup(self, stage: str) -> None:
         # Before a resumed run's checkpoint is restored, which then overrides these weights.
@@ -143,7 +147,8 @@ class SparseLaneSTPModule(pl.LightningModule):
 
     def _predictions(self, outputs: Mapping[str, Any], batch: Mapping[str, Any]) -> DenseLanes:
         """Predicted lanes at the ground truth's y grid (the same for every sample)."""
-        return predicted_lanes(self.net, outputs, batch["gt_y"][0], self.metric_config.visibility_threshold)
+        nms = None if self.nms_distance is None else (self.nms_distance, self.metric_config.close_range)
+        return predicted_lanes(self.net, outputs, batch["gt_y"][0], self.metric_config.visibility_threshold, nms)
 
     # ----------------------------------------------------------------- training
     def training_step(self, batch: Mapping[str, Any], batch_idx: int) -> Tensor:

@@ -21,6 +21,7 @@ from torch import Tensor, nn
 
 from lanelab.models.deformable_attention import DeformableCrossAttention
 from lanelab.models.heads import LaneHead
+from lanelab.models.lateral_search import LateralSearch
 from lanelab.models.memory_queue import MemoryState
 from lanelab.models.positional_encoding import PointPositionalEncoding
 
@@ -73,15 +74,22 @@ class DecoderLayer(nn.Module):
 
 class LaneDecoder(nn.Module):
     """layers: the L DecoderLayers; head: the LaneHead shared by all of them;
-    positional_encoding: the PointPositionalEncoding of queries and memory."""
+    positional_encoding: the PointPositionalEncoding of queries and memory; searches: one
+    LateralSearch per layer, which moves each refined control point across the road onto the
+    marking it finds (models.lateral_search), or None."""
 
     def __init__(
-        self, layers: Sequence[DecoderLayer], head: LaneHead, positional_encoding: PointPositionalEncoding
+        self,
+        layers: Sequence[DecoderLayer],
+        head: LaneHead,
+        positional_encoding: PointPositionalEncoding,
+        searches: Sequence[LateralSearch] | None = None,
     ) -> None:
         super().__init__()
         self.layers = nn.ModuleList(layers)
         self.head = head
         self.positional_encoding = positional_encoding
+        self.searches = None if searches is None else nn.ModuleList(searches)
 
     def forward(
         self,
@@ -111,6 +119,9 @@ class LaneDecoder(nn.Module):
             query_pos = self.positional_encoding(self.head.normalise(points))
             queries = layer(queries, query_pos, points, memory, memory_pos, features, K, T_lane_cam, image_size)
             logits = self.head.refine(queries, logits)
+            if self.searches is not None:
+                points = self.head.control_points(logits)
+                logits = self.head.shift_x(logits, self.searches[index](queries, points, features[0], K, T_lane_cam, image_size))
             all_points.append(self.head.control_points(logits))
             all_classes.append(self.head.classify(queries))
         return torch.stack(all_points), torch.stack(all_classes), queries

@@ -131,6 +131,12 @@ class LaneHead(nn.Module):
         z = logits[..., 1:2].float() + self.z_mlp(queries).float()
         return torch.cat([x, z, self.v_mlp(queries).float()], dim=-1)
 
+    def shift_x(self, logits: Tensor, shift: Tensor) -> Tensor:
+        """Pre-sigmoid (x, z, v) logits (..., M, 3) with x moved by shift (..., M) metres."""
+        unit = logits[..., 0].float().sigmoid() + shift / (self.x_range[1] - self.x_range[0])
+        x = torch.logit(unit.clamp(1e-6, 1 - 1e-6))
+        return torch.cat([x[..., None].to(logits.dtype), logits[..., 1:]], dim=-1)
+
     def control_points(self, logits: Tensor) -> Tensor:
         """Pre-sigmoid (x, z, v) logits (..., M, 3) -> control points (..., M, 4) = (x, y, z, v),
         metres, at least float32."""

@@ -23,11 +23,13 @@ The memory keeps the lines with the highest foreground class probability (Stream
 by score, with DETR's softmax score). The image features carry LATR's 3D ground positional
 encoding (models.ground_encoding).
 
-Three options make a small model learn from a short schedule (issue "The detectors must learn";
+Four options make a small model learn from a short schedule (issue "The detectors must learn";
 each can be switched off to get the paper's / LATR's behaviour): learned lateral line anchors
 (anchor_span, DAB-DETR / Anchor3DLane style) with lanes assigned to lines by them
-(HungarianMatcher(match_on="anchors")), and sample weights in the deformable cross-attention
-that depend on the sampled content (dca_content_weights).
+(HungarianMatcher(match_on="anchors"), one-to-many with positive_distance), sample weights in
+the deformable cross-attention that depend on the sampled content (dca_content_weights), and a
+lateral search after every layer that moves each control point across the road onto the
+marking it sees (lateral_search, models.lateral_search).
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ from lanelab.models.deformable_attention import DeformableCrossAttention
 from lanelab.models.fpn import FPN
 from lanelab.models.ground_encoding import GroundPositionalEncoding
 from lanelab.models.heads import LaneHead
+from lanelab.models.lateral_search import LateralSearch
 from lanelab.models.memory_queue import MemoryQueue
 from lanelab.models.positional_encoding import PointPositionalEncoding
 from lanelab.models.query_init import LaneQueryGenerator
@@ -82,6 +85,8 @@ class SparseLaneSTP(nn.Module):
     features the cross-attention reads (models.ground_encoding).
     Line anchors: anchor_span (metres) spreads the N lines' learned lateral anchors evenly over
     [-anchor_span, anchor_span] (models.query_init); null: no anchors.
+    lateral_search: {num_candidates, search_range (metres)} of a LateralSearch after every decoder
+    layer, on the finest feature level; null: none.
     """
 
     def __init__(
@@ -117,6 +122,7 @@ class SparseLaneSTP(nn.Module):
         ground_encoding: bool,
         anchor_span: float | None,
         dca_content_weights: bool,
+        lateral_search: Mapping[str, float] | None,
     ) -> None:
         super().__init__()
         self.backbone = ResNet(backbone_depth, backbone_width, _BACKBONE_STAGES)
@@ -147,7 +153,10 @@ class SparseLaneSTP(nn.Module):
             )
             for _ in range(num_layers)
         ]
-        self.decoder = LaneDecoder(layers, head, PointPositionalEncoding(embed_dim))
+        searches = None
+        if lateral_search is not None:
+            searches = [LateralSearch(embed_dim, **lateral_search) for _ in range(num_layers)]
+        self.decoder = LaneDecoder(layers, head, PointPositionalEncoding(embed_dim), searches)
         self.ground_encoding = (
             GroundPositionalEncoding(embed_dim, tuple(x_range), tuple(y_range), tuple(z_range)) if ground_encoding else None
         )
@@ -168,8 +177,11 @@ class SparseLaneSTP(nn.Module):
         Returns the current (last) frame's outputs (see ``step``). With all_frames, every
         per-frame output gets a frame axis after the batch axis (B, F, ...), "memory" is left out,
         and every frame is differentiable; otherwise the earlier frames only fill the memory,
-        without gradient.
+        without gradient. Without a memory (num_memory_frames = 0) the earlier frames cannot
+        change the current frame's outputs, and only the current frame is run.
         """
+        if self.num_memory_frames == 0 and not all_frames:
+            batch = {key: batch[key][:, -1:] for key in ("images", "K", "T_lane_cam", "T_world_lane", "valid")}
         images, valid = batch["images"], batch["valid"]
         B, F = images.shape[:2]
         if all_frames or F == 1:
