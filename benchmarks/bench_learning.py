@@ -1,7 +1,7 @@
 """Do the detectors learn? Train on the demo's synthetic drives, score on held-out drives.
 
     python benchmarks/bench_learning.py [--models sparselanestp latr_baseline] [--seeds 0 1 2]
-        [--max-steps 1500] [--max-time 00:00:05:00] [--val-every 250] [--out runs/bench_learning]
+        [--max-steps 1500] [--max-time 00:00:07:00] [--val-every 250] [--out runs/bench_learning]
         [--results] [key=value ...]
     python benchmarks/bench_learning.py --combine A/summary.json B/summary.json [--out DIR] [--results]
 
@@ -56,7 +56,7 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=["sparselanestp", "latr_baseline"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--max-steps", type=int, default=1500)
-    parser.add_argument("--max-time", default="00:00:05:00", help="wall-clock cap per run, DD:HH:MM:SS")
+    parser.add_argument("--max-time", default="00:00:07:00", help="wall-clock cap per run, DD:HH:MM:SS")
     parser.add_argument("--val-every", type=int, default=250, help="validate every N training steps")
     parser.add_argument("--out", type=Path, default=Path("runs/bench_learning"))
     parser.add_argument("--results", action="store_true", help="write the section into benchmarks/RESULTS.md")
