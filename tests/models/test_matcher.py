@@ -150,3 +150,20 @@ def test_one_to_many_gives_a_lane_every_anchor_near_it_and_a_lone_lane_its_neare
     ((pred, gt),) = matcher(logits, curves, targets, anchors)
     pairs = sorted(zip(pred.tolist(), gt.tolist()))
     assert pairs == [(0, 2), (1, 0), (2, 1), (3, 1)]
+
+
+def test_one_to_many_never_gives_a_line_two_lanes_when_lanes_outnumber_lines():
+    """Two anchors, four lanes, no max_anchor_distance: the two lines take one lane each and the
+    other lanes stay unassigned (no line is handed out twice)."""
+    S = 5
+    y = torch.linspace(3, 30, S)
+    x = torch.tensor([-1.0, 1.0, 6.0, 9.0])[:, None].expand(4, S)
+    targets = {
+        "gt_y": y, "gt_x": x[None], "gt_z": torch.zeros(1, 4, S), "gt_vis": torch.ones(1, 4, S),
+        "gt_category": torch.full((1, 4), 2), "gt_mask": torch.ones(1, 4, dtype=torch.bool),
+    }  # fmt: skip
+    logits, curves = torch.zeros(1, 2, BACKGROUND_INDEX + 1), torch.zeros(1, 2, S, 4)
+    ((pred, gt),) = HungarianMatcher(match_on="anchors", positive_distance=0.5)(
+        logits, curves, targets, torch.tensor([-1.0, 1.0])
+    )
+    assert sorted(zip(pred.tolist(), gt.tolist())) == [(0, 0), (1, 1)]

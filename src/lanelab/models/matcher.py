@@ -104,7 +104,10 @@ class HungarianMatcher(nn.Module):
 
     def anchor_cost(self, anchors: Tensor, targets: Mapping[str, Tensor]) -> Tensor:
         """Pair costs (B, N, G): mean |x̂ - a| over each lane's near visible samples."""
-        used = self._near_samples(targets)[:, None]  # (B, 1, G, S)
+        visible = targets["gt_vis"] > 0.5  # (B, G, S)
+        y = targets["gt_y"] if targets["gt_y"].dim() == 2 else targets["gt_y"].expand(visible.shape[0], -1)
+        near = visible & (y[:, None, :] <= self.near_range)
+        used = torch.where(near.any(-1, keepdim=True), near, visible).float()[:, None]  # (B, 1, G, S)
         distance = (targets["gt_x"][:, None].float() - anchors.float()[None, :, None, None]).abs()  # (B, N, G, S)
         return (distance * used).sum(-1) / used.sum(-1).clamp_min(1)
 
@@ -118,20 +121,14 @@ class HungarianMatcher(nn.Module):
         free = torch.ones(cost.shape[0], dtype=torch.bool)
         free[rows] = False
         for g in sorted(set(range(cost.shape[1])) - set(cols.tolist())):
+            if not free.any():
+                break
             candidates = torch.where(free, cost[:, g], torch.inf)
             line = int(candidates.argmin())
             if self.max_anchor_distance is None or candidates[line] <= self.max_anchor_distance:
                 rows, cols = torch.cat([rows, rows.new_tensor([line])]), torch.cat([cols, cols.new_tensor([g])])
                 free[line] = False
         return rows.long(), gt_index[cols]
-
-    def _near_samples(self, targets: Mapping[str, Tensor]) -> Tensor:
-        """(B, G, S) float: each lane's visible samples nearer than near_range (all its visible
-        samples where none is that near)."""
-        visible = targets["gt_vis"] > 0.5
-        y = targets["gt_y"] if targets["gt_y"].dim() == 2 else targets["gt_y"].expand(visible.shape[0], -1)
-        near = visible & (y[:, None, :] <= self.near_range)
-        return torch.where(near.any(-1, keepdim=True), near, visible).float()
 
     def cost_matrix(self, pred_logits: Tensor, pred_curves: Tensor, targets: Mapping[str, Tensor]) -> Tensor:
         """Pair costs (B, N, G) of every proposal and every (padded) ground-truth lane."""
