@@ -5,7 +5,7 @@ import torch
 
 from lanelab.models.memory_queue import MemoryState
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
-from lanelab.models.sta_masks import density, parallel_neighbours, sta_masks
+from lanelab.models.sta_masks import density, parallel_neighbours, sta_masks, temporal_neighbours
 
 Y = torch.linspace(3.0, 103.0, 20, dtype=torch.float64)
 
@@ -113,6 +113,19 @@ def test_tca_picks_the_nearest_valid_memory_points():
     few[:, :3] = True  # fewer valid tokens than m_tca: all of them, nothing else
     tca = sta_masks(points, memory, few, None, 2, m_tca)["tca"][..., N * M :]
     assert torch.equal(tca, few[:, None].expand_as(tca))
+
+
+def test_tca_neighbours_of_bf16_points_are_found_in_float32():
+    # bf16 spaces values 0.5 m apart at 100 m, and cdist has no bf16 kernel (CPU or CUDA): the
+    # distances are taken in float32, so bf16 points pick the neighbours their float32 values pick.
+    g = torch.Generator().manual_seed(3)
+    scale = torch.tensor([10.0, 100.0, 2.0])
+    points = (torch.rand(1, 4, 6, 3, generator=g) * scale).bfloat16()
+    memory = (torch.rand(1, 40, 3, generator=g) * scale).bfloat16()
+    valid = torch.ones(1, 40, dtype=torch.bool)
+    index, found = temporal_neighbours(points, memory, valid, 5)
+    expected, _ = temporal_neighbours(points.float(), memory.float(), valid, 5)
+    assert found.all() and torch.equal(index, expected)
 
 
 def attention_pair(dtype: torch.dtype, **flags) -> tuple[SpatioTemporalAttention, SpatioTemporalAttention]:

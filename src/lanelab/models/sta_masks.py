@@ -92,10 +92,12 @@ def temporal_neighbours(
     with k_t = min(m_tca, K), nearest first.
     """
     B, N, M = points.shape[:3]
-    # Exact distances (not the matmul shortcut), so near-ties resolve the same on every device.
+    # Exact distances (not the matmul shortcut), so near-ties resolve the same on every device;
+    # in float32 at least: bf16 has metres of spacing at 100 m, and CUDA's cdist has no bf16.
+    dtype = torch.promote_types(points.dtype, torch.float32)
     distance = torch.cdist(
-        points[..., :3].reshape(B, N * M, 3),
-        memory_points[..., :3].to(points.dtype),
+        points[..., :3].reshape(B, N * M, 3).to(dtype),
+        memory_points[..., :3].to(dtype),
         compute_mode="donot_use_mm_for_euclid_dist",
     )
     distance = distance.masked_fill_(~memory_valid[:, None, :], torch.inf)

@@ -10,6 +10,7 @@ are per-sample means (metres, nats) whatever the batch holds.
 
 from __future__ import annotations
 
+import torch
 import torch.nn.functional as F
 from torch import Tensor
 
@@ -37,6 +38,9 @@ def regression_loss(curves: Tensor, gt_x: Tensor, gt_z: Tensor, gt_vis: Tensor, 
 
 def visibility_loss(curves: Tensor, gt_vis: Tensor, normaliser: int | Tensor) -> Tensor:
     """Eq. 24 (printed without the minus sign of a cross-entropy): binary cross-entropy of the
-    predicted visibility f_v at every ground-truth sample of the matched lines, (P, S)."""
-    probability = curves[..., 3].clamp(VISIBILITY_EPS, 1 - VISIBILITY_EPS)
-    return F.binary_cross_entropy(probability, gt_vis, reduction="sum") / normaliser
+    predicted visibility f_v at every ground-truth sample of the matched lines, (P, S).
+    In float32 outside autocast, which refuses a cross-entropy of probabilities (f_v is an
+    interpolation of them, not a sigmoid of one logit)."""
+    probability = curves[..., 3].float().clamp(VISIBILITY_EPS, 1 - VISIBILITY_EPS)
+    with torch.autocast(curves.device.type, enabled=False):
+        return F.binary_cross_entropy(probability, gt_vis.float(), reduction="sum") / normaliser
