@@ -44,6 +44,7 @@ class WorldConfig:
     num_lanes: Optional[int] = None
     lane_width_m: list[float] = field(default_factory=lambda: [3.0, 4.0])
     min_curve_radius_m: float = MISSING
+    max_straight_m: Optional[float] = None
     traffic_density: float = MISSING
     max_range_m: float = MISSING
     ego_speed_mps: Optional[float] = None
@@ -132,6 +133,8 @@ def validate(cfg: SynthConfig) -> SynthConfig:
         raise ConfigError(f"world.lane_width_m={list(world.lane_width_m)} must be [min, max] within [2.5, 5.0]")
     if world.min_curve_radius_m < 50:
         raise ConfigError(f"world.min_curve_radius_m={world.min_curve_radius_m} must be >= 50")
+    if world.max_straight_m is not None and world.max_straight_m < 0:
+        raise ConfigError(f"world.max_straight_m={world.max_straight_m} must be >= 0 (or null)")
     if world.traffic_density < 0:
         raise ConfigError(f"world.traffic_density={world.traffic_density} must be >= 0")
     check_positive("world.max_range_m", world.max_range_m)

@@ -79,7 +79,7 @@ class SyntheticDrive:
             length = EGO_START_M + speed * cfg.duration_s + self.draw_range + ROAD_MARGIN_M
             xs = random_cross_section(rng["road"], environment, num_lanes, lane_width, EGO_START_M, length,
                                       world.min_curve_radius_m)
-            road = random_road(rng["road"], length, xs, world.min_curve_radius_m)
+            road = random_road(rng["road"], length, xs, world.min_curve_radius_m, world.max_straight_m)
         self.road = road
         ego_lanes = road.cross_section.ego_lanes()
         lane = ego_lanes[int(rng["ego"].integers(len(ego_lanes)))] if ego_lane is None else ego_lane

@@ -155,12 +155,14 @@ ROAD_STYLES = {
 CREST_OR_SAG_PROBABILITY = 0.7  # that the next grade has the other sign
 
 
-def random_curvature(rng: np.random.Generator, length: float, style: RoadStyle,
-                     min_radius: float) -> Callable[[np.ndarray], np.ndarray]:
-    """Straights, clothoid transitions and arcs of both hands, as curvature(s)."""
+def random_curvature(rng: np.random.Generator, length: float, style: RoadStyle, min_radius: float,
+                     max_straight: float | None = None) -> Callable[[np.ndarray], np.ndarray]:
+    """Straights, clothoid transitions and arcs of both hands, as curvature(s); straights no
+    longer than max_straight metres (None: the style's lengths)."""
     low = max(style.radius_m[0], min_radius)
     high = max(style.radius_m[1], low)
-    s = rng.uniform(0.0, style.straight_m[1])  # the drive may start on a curve
+    straight = style.straight_m if max_straight is None else tuple(min(x, max_straight) for x in style.straight_m)
+    s = rng.uniform(0.0, straight[1])  # the drive may start on a curve
     knots = [(0.0, 0.0), (s, 0.0)]
     while s < length:
         radius = float(np.exp(rng.uniform(np.log(low), np.log(high))))
@@ -173,7 +175,7 @@ def random_curvature(rng: np.random.Generator, length: float, style: RoadStyle,
         knots.append((s, kappa))
         s += ramp_out
         knots.append((s, 0.0))
-        s += rng.uniform(*style.straight_m)
+        s += rng.uniform(*straight)
         knots.append((s, 0.0))
     return _piecewise_linear(knots)
 
@@ -199,8 +201,10 @@ def _piecewise_linear(knots: list[tuple[float, float]]) -> Callable[[np.ndarray]
     return lambda s: np.interp(s, xs, ys)
 
 
-def random_road(rng: np.random.Generator, length: float, cross_section: CrossSection, min_radius: float) -> Road:
-    """A procedural road in the style of ``cross_section.environment``."""
+def random_road(rng: np.random.Generator, length: float, cross_section: CrossSection, min_radius: float,
+                max_straight: float | None = None) -> Road:
+    """A procedural road in the style of ``cross_section.environment``; straights of at most
+    max_straight metres (None: the style's)."""
     style = ROAD_STYLES[cross_section.environment]
-    return Road.from_profiles(length, cross_section, random_curvature(rng, length, style, min_radius),
+    return Road.from_profiles(length, cross_section, random_curvature(rng, length, style, min_radius, max_straight),
                               random_grade(rng, length, style))

@@ -82,3 +82,26 @@ def test_random_roads_respect_the_radius_and_grade_limits(environment):
     assert np.abs(road.grade(s)).max() <= ROAD_STYLES[environment].max_grade + 1e-9
     again = random_road(np.random.default_rng(2), 3000.0, layout, min_radius=120.0)
     np.testing.assert_array_equal(again.surface(s, 1.0), road.surface(s, 1.0))
+
+
+def _longest_straight(road: Road, step: float = 1.0) -> float:
+    s = np.arange(0.0, road.length, step)
+    straight = np.abs(road.curvature(s)) < 1e-9
+    longest = run = 0
+    for flat in straight:
+        run = run + 1 if flat else 0
+        longest = max(longest, run)
+    return longest * step
+
+
+def test_max_straight_caps_the_straights_and_keeps_the_style_otherwise():
+    # A highway's straights run to 500 m, so a 4 s drive rarely sees a curve; the cap makes short
+    # drives bend (the demo's training drives), without touching the radii.
+    layout = cross_section.random_cross_section(np.random.default_rng(1), "highway", 2, 3.5, 30.0, 3000.0, 120.0)
+    free = random_road(np.random.default_rng(2), 3000.0, layout, min_radius=120.0)
+    capped = random_road(np.random.default_rng(2), 3000.0, layout, min_radius=120.0, max_straight=60.0)
+    assert _longest_straight(free) > 100.0
+    assert _longest_straight(capped) <= 61.0
+    s = np.linspace(0.0, capped.length, 5000)
+    radii = 1 / np.abs(capped.curvature(s))[np.abs(capped.curvature(s)) > 0]
+    assert radii.min() >= ROAD_STYLES["highway"].radius_m[0] - 1e-6
