@@ -28,9 +28,9 @@ from omegaconf import OmegaConf
 
 from data_ingest.synth.config import load_synth_config
 from data_ingest.synth.drive import SyntheticDrive
-from lanelab.data.clip_store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
-from lanelab.data.image_codec import decode_image
 from lanelab.geometry.frames import extrinsic_base_to_lane, pose_base_to_lane
+from lanelab.store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
+from lanelab.store.image_codec import decode_image
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 HEIGHT, WIDTH, NUM_FRAMES, BATCH_SIZE = 360, 480, 4, 8

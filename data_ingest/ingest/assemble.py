@@ -30,8 +30,8 @@ from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.messages import LanesMsg
 from data_ingest.ingest.scan import ImageRef, LogContents
 from data_ingest.ingest.tf_tree import TfTree
-from lanelab.data.clip_store import FrameRecord, LaneRecord
 from lanelab.geometry import T_BASE_LANE, T_LANE_BASE, invert
+from lanelab.store import FrameRecord, LaneRecord
 
 _T_BASE_LANE = T_BASE_LANE.numpy()
 _T_LANE_BASE = T_LANE_BASE.numpy()

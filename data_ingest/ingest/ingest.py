@@ -38,7 +38,7 @@ from data_ingest.ingest.scan import scan_log
 from data_ingest.ingest.spill import Spill
 from data_ingest.ingest.summary import print_summary
 from lanelab.config_checks import ConfigError
-from lanelab.data.clip_store import (
+from lanelab.store import (
     ClipEntry,
     Manifest,
     ManifestError,

@@ -35,7 +35,7 @@ from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import RawMessage
-from lanelab.data.image_codec import COMPRESSED_ENCODINGS, RAW_CHANNELS, compressed_format, compressed_size
+from lanelab.store.image_codec import COMPRESSED_ENCODINGS, RAW_CHANNELS, compressed_format, compressed_size
 
 NS = 1_000_000_000
 

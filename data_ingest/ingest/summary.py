@@ -6,7 +6,7 @@ from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lanelab.data.clip_store import SPLITS, Manifest
+from lanelab.store import SPLITS, Manifest
 
 if TYPE_CHECKING:
     from data_ingest.ingest.ingest import LogResult

@@ -38,7 +38,10 @@ import numpy as np
 from data_ingest.openlane.annotation import Annotation, read_annotation, timestamp_ns
 from data_ingest.openlane.config import OpenLaneAdapterConfig
 from lanelab.config_checks import ConfigError
-from lanelab.data.clip_store import (
+from lanelab.evaluation.scenario_lists import read_scenario_lists
+from lanelab.metrics.json_files import LaneFileError, load_json_object
+from lanelab.metrics.scenarios import OPENLANE_SCENARIOS
+from lanelab.store import (
     ClipEntry,
     FrameRecord,
     Manifest,
@@ -49,10 +52,7 @@ from lanelab.data.clip_store import (
     write_clip,
     write_manifest,
 )
-from lanelab.data.image_codec import compressed_format, compressed_size
-from lanelab.evaluation.scenario_lists import read_scenario_lists
-from lanelab.metrics.json_files import LaneFileError, load_json_object
-from lanelab.metrics.scenarios import OPENLANE_SCENARIOS
+from lanelab.store.image_codec import compressed_format, compressed_size
 
 FILE_PATH_TAG = "openlane.file_path"
 MADE_BY = "lanelab-openlane"

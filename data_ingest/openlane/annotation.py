@@ -42,7 +42,6 @@ from typing import Any
 
 import numpy as np
 
-from lanelab.data.clip_store import LaneRecord
 from lanelab.geometry.frames import T_BASE_LANE
 from lanelab.metrics.json_files import (
     LaneFileError,
@@ -53,6 +52,7 @@ from lanelab.metrics.json_files import (
 )
 from lanelab.metrics.openlane_io import camera_lane_to_ground, ground_from_camera
 from lanelab.metrics.temporal_consistency import NO_TRACK
+from lanelab.store import LaneRecord
 
 NS_PER_NAME_UNIT = 10  # file names count 10 ns units (microseconds followed by "00")
 

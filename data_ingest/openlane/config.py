@@ -13,7 +13,7 @@ from typing import Dict, Optional, Sequence
 from omegaconf import MISSING
 
 from lanelab.config_checks import ConfigError, check_existing, load_config
-from lanelab.data.clip_store import SPLITS
+from lanelab.store import SPLITS
 
 
 @dataclass

@@ -24,8 +24,8 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from data_ingest.openlane.adapter import FILE_PATH_TAG
-from lanelab.data.clip_store import FrameRecord
 from lanelab.metrics.openlane import OpenLaneConfig
+from lanelab.store import FrameRecord
 
 if TYPE_CHECKING:
     from lanelab.viz.lanes import LaneLike  # points (P, 3), visibility (P,), category

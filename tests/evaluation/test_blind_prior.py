@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from eval_helpers import write_prediction_set
 
-from lanelab.data.clip_store import ClipEntry, LaneRecord, Manifest, write_clip, write_manifest
 from lanelab.evaluation.blind_prior import (
     NAME,
     BlindPrior,
@@ -29,6 +28,7 @@ from lanelab.evaluation.config import load_eval_config
 from lanelab.evaluation.report import build_report, to_json, to_markdown, to_text
 from lanelab.evaluation.scenario_lists import read_scenario_lists, scenarios_of
 from lanelab.metrics.openlane import OpenLaneConfig, evaluate, evaluate_frames, summarize
+from lanelab.store import ClipEntry, LaneRecord, Manifest, write_clip, write_manifest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data"))  # the data tests' store helpers
 from synthetic_clips import frame_record  # noqa: E402

@@ -17,7 +17,7 @@ from ingest_helpers import chunk_spans, ingest_into, read_log, small_config, wri
 from mcap.writer import Writer
 
 from data_ingest.synth.mcap_writer import write_drive_log
-from lanelab.data.clip_store import ClipStore
+from lanelab.store import ClipStore
 
 IMAGE, CALIBRATION, LANES = "/camera/front/image", "/camera/front/camera_info", "/lanes"
 

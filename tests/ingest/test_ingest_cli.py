@@ -11,7 +11,7 @@ from hydra.errors import ConfigCompositionException
 
 from data_ingest.ingest.config import load_ingest_config
 from data_ingest.synth.config import ConfigError
-from lanelab.data.clip_store import read_manifest
+from lanelab.store import read_manifest
 
 
 def run_ingest(*args: str) -> subprocess.CompletedProcess:

@@ -9,7 +9,7 @@ from ingest_helpers import ingest_into
 
 import data_ingest.ingest.ingest as ingest_module
 from data_ingest.synth.config import ConfigError
-from lanelab.data.clip_store import ClipStore, read_manifest
+from lanelab.store import ClipStore, read_manifest
 
 
 @pytest.fixture

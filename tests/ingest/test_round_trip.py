@@ -10,9 +10,9 @@ import pyarrow.parquet as pq
 import pytest
 from ingest_helpers import ENCODINGS, ingest_into, read_log, write_log
 
-from lanelab.data.clip_store import ClipStore
-from lanelab.data.image_codec import decode_image
 from lanelab.geometry import T_BASE_LANE, T_LANE_BASE
+from lanelab.store import ClipStore
+from lanelab.store.image_codec import decode_image
 
 TOL = 1e-4  # metres (and unitless for rotations and K)
 

@@ -18,8 +18,8 @@ from hydra import compose, initialize_config_dir
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from lanelab.data.clip_store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
 from lanelab.data.datamodule import ClipDataModule
+from lanelab.store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
 from lanelab.viz import draw_lanes_on_image
 
 CONF = Path(__file__).resolve().parents[2] / "conf"

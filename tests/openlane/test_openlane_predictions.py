@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from data_ingest.openlane.predictions import file_path_of, prediction_path, write_prediction
-from lanelab.data.clip_store import FrameRecord, LaneRecord
 from lanelab.metrics.openlane_io import read_prediction
+from lanelab.store import FrameRecord, LaneRecord
 
 FILE_PATH = "validation/segment-x/155840113564752100.jpg"
 

@@ -1,7 +1,9 @@
-"""Clip datasets: the clip store (format, writing, reading) and what feeds models from it."""
+"""What feeds models from a clip store (:mod:`lanelab.store`): frame indices, samplers, datasets.
 
-# What feeds models (the LightningDataModule is lanelab.data.datamodule.ClipDataModule, left out
-# here so that importing the clip store does not import Lightning).
+The LightningDataModule, :class:`lanelab.data.datamodule.ClipDataModule`, is left out here so
+that importing the samplers and datasets does not import Lightning.
+"""
+
 from lanelab.data.augment import PhotometricAugment
 from lanelab.data.collate import collate_samples
 from lanelab.data.dataset import ClipDataset

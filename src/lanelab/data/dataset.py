@@ -44,12 +44,12 @@ import torch
 from torch.utils.data import Dataset
 
 from lanelab.data.augment import PhotometricAugment
-from lanelab.data.clip_store import ClipStore
 from lanelab.data.frame_index import FrameIndex, SampleKey, consecutive_offsets
-from lanelab.data.image_codec import decode_image
 from lanelab.data.mirror import mirror_categories, mirror_intrinsics, mirror_transforms
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
+from lanelab.store import ClipStore
+from lanelab.store.image_codec import decode_image
 
 
 def mirror_targets(targets: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

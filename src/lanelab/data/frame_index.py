@@ -13,7 +13,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 import pyarrow.parquet as pq
 
-from lanelab.data.clip_store import ClipStore
+from lanelab.store import ClipStore
 
 
 class SampleKey(NamedTuple):

@@ -21,7 +21,7 @@ store's training split, straight and flat, predicted identically for every frame
    ranges (first and last visible point inside the metric's ranges); z = 0.
 
 It is deterministic (same store, same numbers) and reads only the ``labeled`` and ``lanes``
-columns of the clip files (:meth:`lanelab.data.clip_store.ClipStore.read_labels`), not
+columns of the clip files (:meth:`lanelab.store.ClipStore.read_labels`), not
 the images.
 
 The prior is scored with the OpenLane metric of :mod:`lanelab.metrics.openlane` against the
@@ -126,7 +126,7 @@ def compute_blind_prior(
     labeled frame.
     """
     # The clip store's package brings torch along: imported only when a prior is computed.
-    from lanelab.data.clip_store import ClipStore, ManifestError
+    from lanelab.store import ClipStore, ManifestError
 
     try:
         clips = ClipStore(store)

@@ -34,9 +34,7 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 
 from lanelab.config_checks import ConfigError
-from lanelab.data.clip_store import ClipStore
 from lanelab.data.datamodule import ClipDataModule
-from lanelab.data.image_codec import decode_image
 from lanelab.evaluation.blind_prior import blind_prior_reference
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, Report, build_report, to_text, write_report
@@ -46,6 +44,8 @@ from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.metrics.openlane import evaluate_frames
 from lanelab.metrics.scenarios import TABLE7_GROUPS, tag_scenarios
+from lanelab.store import ClipStore
+from lanelab.store.image_codec import decode_image
 
 # Table 7's scenario groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
 SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import json
 
-import cv2
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-import lanelab.data.clip_store as clip_store
-from lanelab.data.clip_store import (
+import lanelab.store.clip_file as clip_file
+from lanelab.store import (
     CLIP_SCHEMA,
     ClipEntry,
     ClipStore,
@@ -23,11 +22,6 @@ from lanelab.data.clip_store import (
     write_clip,
     write_manifest,
 )
-from lanelab.data.image_codec import compressed_size, decode_image
-
-# A smooth picture (JPEG keeps it close), distinct in every channel.
-RGB = np.stack(np.broadcast_arrays(np.arange(8)[None, :] * 30, np.arange(6)[:, None] * 40, 90), axis=-1)
-RGB = RGB.astype(np.uint8)
 
 
 def frame(k: int) -> FrameRecord:
@@ -64,7 +58,7 @@ def store(tmp_path):
 def test_windows_round_trip_reading_only_their_row_groups(store, monkeypatch):
     root, frames = store
     calls = []
-    monkeypatch.setattr(clip_store, "open", lambda *a: calls.append("open") or open(*a), raising=False)
+    monkeypatch.setattr(clip_file, "open", lambda *a: calls.append("open") or open(*a), raising=False)
     read_row_groups = pq.ParquetFile.read_row_groups
     monkeypatch.setattr(pq.ParquetFile, "read_row_groups",
                         lambda self, groups, **kw: calls.append(list(groups)) or read_row_groups(self, groups, **kw))
@@ -136,30 +130,3 @@ def test_bad_manifests_are_named(tmp_path, content, message):
     with pytest.raises(ManifestError, match=message) as error:
         read_manifest(tmp_path)
     assert str(tmp_path / "manifest.json") in str(error.value)
-
-
-def encoded(encoding: str) -> FrameRecord:
-    bgr = np.ascontiguousarray(RGB[..., ::-1])
-    data = {"jpeg": lambda: cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 100])[1].tobytes(),
-            "png": lambda: cv2.imencode(".png", bgr)[1].tobytes(),
-            "rgb8": RGB.tobytes, "bgr8": bgr.tobytes,
-            "mono8": lambda: RGB[..., 0].tobytes()}[encoding]()
-    return FrameRecord(0, data, encoding, 8, 6, np.eye(3), np.eye(4), np.eye(4), False)
-
-
-@pytest.mark.parametrize("encoding", ["jpeg", "png", "rgb8", "bgr8", "mono8"])
-def test_decode_image_gives_rgb(encoding):
-    image = decode_image(encoded(encoding))
-    assert image.shape == (6, 8, 3) and image.dtype == np.uint8
-    expected = np.repeat(RGB[..., :1], 3, axis=2) if encoding == "mono8" else RGB
-    # JPEG is lossy on so small a picture; a swap of channels would be off by 100 or more.
-    assert np.abs(image.astype(int) - expected).max() <= (30 if encoding == "jpeg" else 0)
-    if encoding in ("jpeg", "png"):
-        assert compressed_size(encoded(encoding).image, encoding) == (8, 6)
-
-
-def test_decode_image_names_unknown_encodings_and_wrong_sizes():
-    with pytest.raises(ValueError, match="unknown image encoding 'yuv422'"):
-        decode_image(FrameRecord(0, b"\0" * 96, "yuv422", 8, 6, np.eye(3), np.eye(4), np.eye(4), False))
-    with pytest.raises(ValueError, match="needs 144 bytes"):
-        decode_image(FrameRecord(0, b"\0" * 96, "rgb8", 8, 6, np.eye(3), np.eye(4), np.eye(4), False))

@@ -27,7 +27,7 @@ _JPEG_STANDALONE = frozenset([0x01, *range(0xD0, 0xDA)])
 
 
 class EncodedImage(Protocol):
-    """What :func:`decode_image` needs (a :class:`~lanelab.data.clip_store.FrameRecord` has it)."""
+    """What :func:`decode_image` needs (a :class:`~lanelab.store.records.FrameRecord` has it)."""
 
     image: bytes
     image_encoding: str

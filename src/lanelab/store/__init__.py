@@ -1,0 +1,22 @@
+"""The clip store (DESIGN.md, "Clip store contract"), a stage of its own: no torch, no model.
+
+- :mod:`~lanelab.store.schema`: the format, its Parquet columns and file layout, defined once;
+- :mod:`~lanelab.store.records`: a clip file's rows as :class:`FrameRecord` / :class:`LaneRecord`;
+- :mod:`~lanelab.store.manifest`: ``manifest.json``, read and written;
+- :mod:`~lanelab.store.clip_file`: clip files written and read (the only code that names columns);
+- :mod:`~lanelab.store.reader`: :class:`ClipStore`, what the datasets read;
+- :mod:`~lanelab.store.image_codec`: the stored images' encodings, decoded to RGB.
+"""
+
+from lanelab.store.clip_file import write_clip
+from lanelab.store.manifest import (
+    ClipEntry,
+    Manifest,
+    ManifestError,
+    SourceEntry,
+    read_manifest,
+    write_manifest,
+)
+from lanelab.store.reader import ClipStore
+from lanelab.store.records import FrameRecord, LaneRecord
+from lanelab.store.schema import CLIP_SCHEMA, SPLITS, clip_path, manifest_path

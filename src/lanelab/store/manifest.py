@@ -1,0 +1,93 @@
+"""``manifest.json``: a store's format and version, its sources and its clips.
+
+Written atomically (:func:`lanelab.atomic_file.atomic_output`); read with checks that name
+the file and the fault.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from lanelab.atomic_file import atomic_output
+from lanelab.store.schema import FORMAT_NAME, FORMAT_VERSION, manifest_path
+
+
+class ManifestError(ValueError):
+    """A store's manifest is missing, garbled or of a format this lanelab cannot read; names the file."""
+
+
+@dataclass(frozen=True)
+class SourceEntry:
+    """A drive log a store was made from."""
+
+    path: str
+    sha256: str
+    num_frames: int
+
+
+@dataclass(frozen=True)
+class ClipEntry:
+    """A clip of a store; ``source`` is the ``path`` of its :class:`SourceEntry`."""
+
+    clip_id: str
+    source: str
+    split: str
+    num_frames: int
+    first_timestamp_ns: int
+    last_timestamp_ns: int
+
+
+@dataclass
+class Manifest:
+    """``manifest.json``: the store's sources and clips.
+
+    ``options``: how the store was made (the writing tool's options); readers may ignore it.
+    """
+
+    sources: list[SourceEntry] = field(default_factory=list)
+    clips: list[ClipEntry] = field(default_factory=list)
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+def read_manifest(store_dir: str | Path) -> Manifest:
+    """Read ``<store_dir>/manifest.json``; :class:`ManifestError` names the file and the fault."""
+    path = manifest_path(store_dir)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ManifestError(f"{path}: no clip store manifest there") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ManifestError(f"{path}: cannot read the manifest: {err}") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
+        found = data.get("format") if isinstance(data, dict) else type(data).__name__
+        raise ManifestError(f"{path}: not a {FORMAT_NAME} manifest (format: {found!r})")
+    if data.get("version") != FORMAT_VERSION:
+        raise ManifestError(f"{path}: format version {data.get('version')!r} is not supported "
+                            f"(this lanelab reads version {FORMAT_VERSION})")
+    try:
+        return Manifest(
+            sources=[SourceEntry(**entry) for entry in data["sources"]],
+            clips=[ClipEntry(**entry) for entry in data["clips"]],
+            options=dict(data.get("options", {})),
+        )
+    except (KeyError, TypeError) as err:
+        raise ManifestError(f"{path}: malformed manifest: {err}") from None
+
+
+def write_manifest(store_dir: str | Path, manifest: Manifest) -> Path:
+    """Write ``<store_dir>/manifest.json`` atomically; return its path."""
+    path = manifest_path(store_dir)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "sources": [asdict(entry) for entry in manifest.sources],
+        "clips": [asdict(entry) for entry in manifest.clips],
+        "options": manifest.options,
+    }
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    return path
