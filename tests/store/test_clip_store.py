@@ -89,6 +89,19 @@ def test_labels_are_read_without_the_images(store, monkeypatch):
         assert_same(FrameRecord(**{**vars(original), "lanes": lanes}), original)
 
 
+def test_timelines_and_tags_are_read_without_the_images(store, monkeypatch):
+    root, frames = store
+    read_table = pq.read_table
+    columns = []
+    monkeypatch.setattr(pq, "read_table", lambda path, **kw: columns.append(kw.get("columns")) or read_table(path, **kw))
+    clips = ClipStore(root)
+    timestamps, labeled = clips.read_timeline("c0")
+    assert timestamps.dtype == np.int64 and timestamps.tolist() == [f.timestamp_ns for f in frames]
+    assert labeled.dtype == bool and labeled.tolist() == [f.labeled for f in frames]
+    assert clips.read_tags("c0") == [(f.timestamp_ns, f.tags) for f in frames]
+    assert columns == [["labeled", "timestamp_ns"], ["timestamp_ns", "tags"]]
+
+
 def test_readable_with_pyarrow_and_json_alone(store):
     root, frames = store
     manifest = json.loads((root / "manifest.json").read_text())

@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from lanelab.store import ClipStore
 
@@ -75,10 +74,8 @@ class FrameIndex:
     @classmethod
     def from_store(cls, store: ClipStore, clip_ids: Sequence[str]) -> FrameIndex:
         """Index these clips of a store, reading only their small columns."""
-        columns = [pq.read_table(store.clip_path(c), columns=["labeled", "timestamp_ns"]) for c in clip_ids]
-        return cls.from_clips(
-            [(c, t["labeled"].to_numpy(), t["timestamp_ns"].to_numpy()) for c, t in zip(clip_ids, columns)]
-        )
+        timelines = [store.read_timeline(c) for c in clip_ids]
+        return cls.from_clips([(c, labeled, stamps) for c, (stamps, labeled) in zip(clip_ids, timelines)])
 
     def __len__(self) -> int:
         return int(self.starts[-1])

@@ -29,7 +29,6 @@ from pathlib import Path, PurePosixPath
 
 import lightning.pytorch as pl
 import numpy as np
-import pyarrow.parquet as pq
 import torch
 from omegaconf import DictConfig, OmegaConf
 
@@ -147,9 +146,8 @@ def frame_tags(store: ClipStore, clip_ids: set[str]) -> dict[str, dict[str, str]
     tags, read from the clip files' ``tags`` column alone."""
     tags = {}
     for clip_id in sorted(clip_ids):
-        table = pq.read_table(store.clip_path(clip_id), columns=["timestamp_ns", "tags"]).to_pydict()
-        for timestamp, frame_tags in zip(table["timestamp_ns"], table["tags"]):
-            tags[f"{clip_id}/{timestamp}.json"] = dict(frame_tags or [])
+        for timestamp, frame_tags in store.read_tags(clip_id):
+            tags[f"{clip_id}/{timestamp}.json"] = frame_tags
     return tags
 
 

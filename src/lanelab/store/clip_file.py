@@ -184,3 +184,15 @@ def read_labels(path: Path) -> list[tuple[bool, list[LaneRecord]]]:
     table = pq.read_table(path, columns=["labeled", "lanes"])
     lanes = _lanes_from_column(table["lanes"].combine_chunks())
     return list(zip(table["labeled"].to_pylist(), lanes))
+
+
+def read_timeline(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Every frame's ``timestamp_ns`` (N,) int64 and ``labeled`` flag (N,) bool, from those two columns alone."""
+    table = pq.read_table(path, columns=["labeled", "timestamp_ns"])
+    return table["timestamp_ns"].to_numpy(), table["labeled"].to_numpy()
+
+
+def read_tags(path: Path) -> list[tuple[int, dict[str, str]]]:
+    """Every frame's ``timestamp_ns`` and tags, in time order, from those two columns alone."""
+    table = pq.read_table(path, columns=["timestamp_ns", "tags"]).to_pydict()
+    return [(timestamp, dict(tags or [])) for timestamp, tags in zip(table["timestamp_ns"], table["tags"])]

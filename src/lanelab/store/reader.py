@@ -1,8 +1,10 @@
-"""Reading a clip store: its manifest, and windows of frames or the labels of its clips."""
+"""Reading a clip store: its manifest, and windows of frames or single columns of its clips."""
 
 from __future__ import annotations
 
 from pathlib import Path
+
+import numpy as np
 
 from lanelab.store import clip_file
 from lanelab.store.manifest import ClipEntry, read_manifest
@@ -52,3 +54,13 @@ class ClipStore:
         """Every frame's ``labeled`` flag and lanes, in time order, reading those two columns
         alone (no images): what statistics over the labels of many frames need."""
         return clip_file.read_labels(self.clip_path(clip_id))
+
+    def read_timeline(self, clip_id: str) -> tuple[np.ndarray, np.ndarray]:
+        """Every frame's ``timestamp_ns`` (N,) int64 and ``labeled`` flag (N,) bool, in time
+        order, reading those two columns alone: what indexing the frames of many clips needs."""
+        return clip_file.read_timeline(self.clip_path(clip_id))
+
+    def read_tags(self, clip_id: str) -> list[tuple[int, dict[str, str]]]:
+        """Every frame's ``timestamp_ns`` and scenario tags, in time order, reading those two
+        columns alone."""
+        return clip_file.read_tags(self.clip_path(clip_id))
