@@ -3,9 +3,11 @@
 :func:`ingest` finds the logs of ``cfg.input`` (a file, a folder searched for ``*.mcap``, or
 a glob), skips those the store already holds unchanged (same name, same sha256, clips
 present), and ingests the others, in ``cfg.workers`` processes: read (:mod:`scan`),
-complete the frames (:mod:`assemble`), cut and write clips (:mod:`clips`). After each log
-the manifest is rewritten atomically, so an interrupted run keeps every finished log and
-the next run resumes with the rest. A log that fails is reported and the others go on.
+complete the frames (:mod:`assemble`), cut and write clips (:mod:`clips`). The store is
+updated as every writing tool updates one (:class:`~lanelab.store.StoreWriter`): after each
+log the manifest is rewritten atomically, so an interrupted run keeps every finished log and
+the next run resumes with the rest. A log that fails is reported, the clip files it wrote
+are deleted, and the others go on.
 
 A log is known by its name (file stem). Its clip ids are ``<name>_<fingerprint>_<k>``
 where the fingerprint hashes the log's sha256 and the store options: re-ingesting a
@@ -38,17 +40,7 @@ from data_ingest.ingest.scan import scan_log
 from data_ingest.ingest.spill import Spill
 from data_ingest.ingest.summary import print_summary
 from lanelab.config_checks import ConfigError
-from lanelab.store import (
-    ClipEntry,
-    Manifest,
-    ManifestError,
-    SourceEntry,
-    clip_path,
-    manifest_path,
-    read_manifest,
-    write_clip,
-    write_manifest,
-)
+from lanelab.store import ClipEntry, ManifestError, SourceEntry, StoreRefused, StoreWriter, write_clip
 
 INGESTED, UNCHANGED, FAILED = "ingested", "unchanged", "failed"
 
@@ -60,7 +52,7 @@ class LogResult:
     path: str
     status: str  # ingested | unchanged | failed
     sha256: str = ""
-    clips: list[ClipEntry] = field(default_factory=list)
+    clips: list[ClipEntry] = field(default_factory=list)  # of a failed log: those written before it failed
     num_frames: int = 0
     labeled: int = 0
     dropped: Counter = field(default_factory=Counter)  # frames, by reason
@@ -68,9 +60,10 @@ class LogResult:
     error: str | None = None
     seconds: float = 0.0
 
-    @property
-    def name(self) -> str:
-        return log_name(Path(self.path).stem)
+
+def source_name(path: str | Path) -> str:
+    """The name a log is known by in a store and in its clip ids: its file stem, sanitised (:func:`log_name`)."""
+    return log_name(Path(path).stem)
 
 
 def find_logs(input_: str) -> list[Path]:
@@ -124,9 +117,9 @@ def ingest_log(path: Path, known_sha256: str | None, cfg: IngestConfig,
             try:
                 _ingest(path, cfg, report, result, sha256, count)
             except LogError as err:
-                result.status, result.error, result.clips = FAILED, str(err), []
+                result.status, result.error = FAILED, str(err)
             except Exception as err:  # whatever else a damaged log provokes, the other logs go on
-                result.status, result.clips = FAILED, []
+                result.status = FAILED
                 result.error = f"{path}: cannot be ingested: {type(err).__name__}: {err}"
             result.warnings[:0] = report.problems()
         result.sha256 = sha256.result()
@@ -152,80 +145,27 @@ def _ingest(path: Path, cfg: IngestConfig, report: ReadReport, result: LogResult
         if not frames:
             reasons = "; ".join(f"{n} x {reason}" for reason, n in result.dropped.most_common())
             raise LogError(f"{path}: no usable frame" + (f" ({reasons})" if reasons else " (no images)"))
-        result.clips = _write_clips(path, frames, spill, sha256.result(), cfg)
+        _write_clips(path, frames, spill, sha256.result(), cfg, result.clips)
         result.num_frames = len(frames)
         result.labeled = sum(frame.record.labeled for frame in frames)
 
 
-def _write_clips(path: Path, frames: list[PlannedFrame], spill: Spill, sha256: str,
-                 cfg: IngestConfig) -> list[ClipEntry]:
-    name = log_name(path.stem)
+def _write_clips(path: Path, frames: list[PlannedFrame], spill: Spill, sha256: str, cfg: IngestConfig,
+                 written: list[ClipEntry]) -> None:
+    """Cut the frames into clips and write them; each clip goes to ``written`` once its file is."""
+    name = source_name(path)
     prefix = f"{name}_{fingerprint(sha256, store_options(cfg))}"
     stamps = np.array([frame.record.timestamp_ns for frame in frames], dtype=np.int64)
-    entries = []
     for index, part in enumerate(cut(stamps, cfg.clips.gap_s, cfg.clips.max_length_s)):
         clip_id = f"{prefix}_{index:03d}"
         write_clip(cfg.output, clip_id, _with_images(frames[part], spill))
-        entries.append(ClipEntry(clip_id, str(path), draw_split(split_key(name, index, cfg.split), cfg.split),
+        written.append(ClipEntry(clip_id, str(path), draw_split(split_key(name, index, cfg.split), cfg.split),
                                  len(frames[part]), int(stamps[part][0]), int(stamps[part][-1])))
-    return entries
 
 
 def _with_images(frames: list[PlannedFrame], spill: Spill) -> Iterator:
     """The frames' records with their image bytes, loaded one at a time."""
     return (replace(frame.record, image=spill.get(frame.image.data)) for frame in frames)
-
-
-# --- the store ---------------------------------------------------------------------------------
-
-def _open_manifest(cfg: IngestConfig) -> Manifest:
-    """The store's manifest (a new one if there is none); refuses a store made with other options."""
-    options = store_options(cfg)
-    if not manifest_path(cfg.output).exists():
-        return Manifest(options=options)
-    manifest = read_manifest(cfg.output)  # a garbled manifest stops the run: nothing is overwritten
-    if manifest.options != options:
-        changed = ", ".join(_differences(manifest.options, options)) or "unrecorded options"
-        if not cfg.overwrite:
-            raise ConfigError(f"{manifest_path(cfg.output)} was made with other options ({changed}); "
-                              "write to a new output, or pass overwrite=true to re-ingest the logs with these")
-        manifest.options = options
-    return manifest
-
-
-def _differences(old: dict, new: dict, prefix: str = "") -> list[str]:
-    out = []
-    for key in sorted(set(old) | set(new)):
-        a, b = old.get(key), new.get(key)
-        if isinstance(a, dict) and isinstance(b, dict):
-            out += _differences(a, b, f"{prefix}{key}.")
-        elif a != b:
-            out.append(f"{prefix}{key}: {a!r} -> {b!r}")
-    return out
-
-
-def _known_sha256(manifest: Manifest, name: str, cfg: IngestConfig) -> str | None:
-    """The sha256 of the log ``name`` as the store holds it, if all its clips are there (and not overwriting)."""
-    source = next((s for s in manifest.sources if log_name(Path(s.path).stem) == name), None)
-    if source is None or cfg.overwrite:
-        return None
-    clips = [clip for clip in manifest.clips if clip.source == source.path]
-    return source.sha256 if all(clip_path(cfg.output, clip.clip_id).exists() for clip in clips) else None
-
-
-def _record(manifest: Manifest, result: LogResult, cfg: IngestConfig) -> None:
-    """Put an ingested log into the manifest (replacing its earlier version), write it, delete stale clips."""
-    old_paths = {s.path for s in manifest.sources if log_name(Path(s.path).stem) == result.name}
-    stale = [clip for clip in manifest.clips if clip.source in old_paths]
-    manifest.sources = sorted([s for s in manifest.sources if s.path not in old_paths]
-                              + [SourceEntry(result.path, result.sha256, result.num_frames)], key=lambda s: s.path)
-    manifest.clips = sorted([c for c in manifest.clips if c.source not in old_paths] + result.clips,
-                            key=lambda c: c.clip_id)
-    write_manifest(cfg.output, manifest)
-    new_ids = {clip.clip_id for clip in result.clips}
-    for clip in stale:
-        if clip.clip_id not in new_ids:
-            clip_path(cfg.output, clip.clip_id).unlink(missing_ok=True)
 
 
 # --- a run -----------------------------------------------------------------------------------
@@ -239,31 +179,35 @@ def ingest(cfg: IngestConfig) -> list[LogResult]:
     if not logs:
         raise ConfigError(f"input={cfg.input!r}: no MCAP log there (a file, a folder of *.mcap or a glob)")
     try:
-        manifest = _open_manifest(cfg)
+        writer = StoreWriter(cfg.output, store_options(cfg), source_name, overwrite=cfg.overwrite)
     except ManifestError as err:
         raise ConfigError(f"output={cfg.output!r} holds a manifest that cannot be read: {err}") from None
+    except StoreRefused as err:
+        raise ConfigError(str(err)) from None
     start = time.perf_counter()
     results: dict[str, LogResult] = {}
     todo: list[tuple[Path, str | None]] = []
     names: dict[str, Path] = {}
     for path in logs:
-        name = log_name(path.stem)
+        name = source_name(path)
         if name in names:
             results[str(path)] = LogResult(str(path), FAILED, error=f"{path}: has the same name as {names[name]}; "
                                                                     "a store knows logs by name: rename one")
             continue
         names[name] = path
-        todo.append((path, _known_sha256(manifest, name, cfg)))
+        todo.append((path, writer.kept_sha256(str(path))))
 
     total = sum(path.stat().st_size for path, _ in todo)
     with tqdm(total=total, unit="B", unit_scale=True, desc="lanelab-ingest", dynamic_ncols=True,
               disable=None) as bar:
         for result in _run(todo, cfg, bar):
             if result.status == INGESTED:
-                _record(manifest, result, cfg)
+                writer.commit(SourceEntry(result.path, result.sha256, result.num_frames), result.clips)
+            elif result.status == FAILED:
+                writer.discard(clip.clip_id for clip in result.clips)
             results[result.path] = result
     in_order = [results[str(path)] for path in logs]
-    print_summary(in_order, manifest, time.perf_counter() - start)
+    print_summary(in_order, writer.manifest, time.perf_counter() - start)
     return in_order
 
 

@@ -20,9 +20,11 @@ split, its frames in time order. Each frame gets
   SparseLaneSTP's Table 7.
 
 Re-running is cheap: a segment whose annotation files and tags are unchanged (the sha256 the
-manifest holds for it), and its split too, keeps its clip. Each clip is written atomically and the manifest
-after each segment, so an interrupted run resumes. A segment that cannot be read is
-reported, naming the file, and the others go on.
+manifest holds for it), and its split too, keeps its clip. The store is updated as every
+writing tool updates one (:class:`~lanelab.store.StoreWriter`; a segment is known by its
+folder's name, its clip id): each clip is written atomically and the manifest after each
+segment, so an interrupted run resumes. A segment that cannot be read is reported, naming
+the file, and the others go on.
 """
 
 from __future__ import annotations
@@ -42,21 +44,20 @@ from lanelab.evaluation.scenario_lists import read_scenario_lists
 from lanelab.metrics.json_files import LaneFileError, load_json_object
 from lanelab.metrics.scenarios import OPENLANE_SCENARIOS
 from lanelab.store import (
+    MADE_BY_OPTION,
     ClipEntry,
     FrameRecord,
-    Manifest,
     SourceEntry,
-    clip_path,
-    manifest_path,
-    read_manifest,
+    StoreRefused,
+    StoreWriter,
     write_clip,
-    write_manifest,
 )
 from lanelab.store.image_codec import compressed_format, compressed_size
 
 FILE_PATH_TAG = "openlane.file_path"
 MADE_BY = "lanelab-openlane"
 LANE_FRAME = "OpenLane evaluator's ground frame: x right, y forward, z up; origin below the camera"
+WITHOUT_POSE = "clips_without_pose"  # the manifest's list of the clips whose frames have no pose
 # scene.json key -> frame tag (the tag keys of the scenario tables)
 SCENE_TAGS = {"scene": "environment", "weather": "weather", "time": "daytime"}
 WRITTEN, KEPT, FAILED = "written", "kept", "failed"
@@ -81,7 +82,11 @@ def adapt(cfg: OpenLaneAdapterConfig) -> list[SegmentResult]:
     """
     case_lists = read_scenario_lists(cfg.scenario_lists) if cfg.scenario_lists else {}
     scenes = _read_scenes(cfg.scene_tags) if cfg.scene_tags else {}
-    manifest = _open_manifest(Path(cfg.output))
+    try:
+        writer = StoreWriter(cfg.output, {MADE_BY_OPTION: MADE_BY, "lane_frame": LANE_FRAME}, _segment_of,
+                             marks=[WITHOUT_POSE])
+    except StoreRefused as err:
+        raise ConfigError(str(err)) from None
     results = []
     for folder, split in cfg.splits.items():
         split_dir = Path(cfg.annotations) / folder
@@ -92,12 +97,10 @@ def adapt(cfg: OpenLaneAdapterConfig) -> list[SegmentResult]:
             segment = segment_dir.name
             scene = scenes.get(segment) or scenes.get(segment.removesuffix("_with_camera_labels"), {})
             try:
-                result = _adapt_segment(segment_dir, split, cfg, manifest, case_lists, scene)
+                result = _adapt_segment(segment_dir, split, cfg, writer, case_lists, scene)
             except ValueError as err:  # LaneFileError names the file; the store's own checks name the clip
                 result = SegmentResult(segment, FAILED, error=str(err))
             results.append(result)
-            if result.status == WRITTEN:
-                write_manifest(cfg.output, manifest)
     return results
 
 
@@ -105,11 +108,11 @@ def _adapt_segment(
     segment_dir: Path,
     split: str,
     cfg: OpenLaneAdapterConfig,
-    manifest: Manifest,
+    writer: StoreWriter,
     case_lists: Mapping[str, frozenset[str]],
     scene: Mapping[str, str],
 ) -> SegmentResult:
-    """Write one segment's clip unless the manifest holds it unchanged; update the manifest."""
+    """Write and commit one segment's clip unless the store holds it unchanged."""
     segment = segment_dir.name
     paths = sorted(segment_dir.glob("*.json"), key=timestamp_ns)
     if not paths:
@@ -117,22 +120,14 @@ def _adapt_segment(
     tags = [_frame_tags(f"{segment}/{path.stem}", case_lists, scene) for path in paths]
     source = str(segment_dir.resolve())
     sha256 = _fingerprint(paths, tags)
-    if _holds(manifest, source, sha256, segment, split) and clip_path(cfg.output, segment).exists():
-        return SegmentResult(segment, KEPT, len(paths), segment not in _without_pose(manifest))
+    if writer.kept_sha256(source, split) == sha256:
+        return SegmentResult(segment, KEPT, len(paths), segment not in writer.manifest.options[WITHOUT_POSE])
 
     annotations = [read_annotation(path) for path in paths]
     has_pose = all(a.T_world_lane is not None for a in annotations)
     write_clip(cfg.output, segment, _frames(annotations, tags, Path(cfg.images), has_pose))
-
-    manifest.sources = [s for s in manifest.sources if s.path != source]
-    manifest.sources.append(SourceEntry(source, sha256, len(paths)))
-    manifest.clips = [c for c in manifest.clips if c.clip_id != segment]
-    manifest.clips.append(ClipEntry(segment, source, split, len(paths),
-                                    annotations[0].timestamp_ns, annotations[-1].timestamp_ns))
-    without_pose = _without_pose(manifest) - {segment}
-    if not has_pose:
-        without_pose.add(segment)
-    manifest.options["clips_without_pose"] = sorted(without_pose)
+    clip = ClipEntry(segment, source, split, len(paths), annotations[0].timestamp_ns, annotations[-1].timestamp_ns)
+    writer.commit(SourceEntry(source, sha256, len(paths)), [clip], marks=[] if has_pose else [WITHOUT_POSE])
     return SegmentResult(segment, WRITTEN, len(paths), has_pose)
 
 
@@ -192,21 +187,6 @@ def _fingerprint(paths: Sequence[Path], tags: Sequence[dict[str, str]]) -> str:
     return digest.hexdigest()
 
 
-def _open_manifest(output: Path) -> Manifest:
-    """The store's manifest, or a new one; refuses a store that another tool made."""
-    if not manifest_path(output).exists():
-        return Manifest(options={"made_by": MADE_BY, "lane_frame": LANE_FRAME, "clips_without_pose": []})
-    manifest = read_manifest(output)
-    if manifest.options.get("made_by") != MADE_BY:
-        raise ConfigError(f"output={str(output)!r} holds a store that {MADE_BY} did not make; choose another output")
-    return manifest
-
-
-def _holds(manifest: Manifest, source: str, sha256: str, clip_id: str, split: str) -> bool:
-    """Whether the manifest lists the source with this sha256 and its clip in this split."""
-    return any(s.path == source and s.sha256 == sha256 for s in manifest.sources) and \
-        any(c.clip_id == clip_id and c.split == split for c in manifest.clips)
-
-
-def _without_pose(manifest: Manifest) -> set[str]:
-    return set(manifest.options.get("clips_without_pose", []))
+def _segment_of(source: str) -> str:
+    """The segment a source (its folder) holds: the folder's name, which is its clip's id."""
+    return Path(source).name

@@ -92,3 +92,18 @@ def test_logs_with_the_same_name_clash(tmp_path, logs):
     assert [r.status for r in results] == ["ingested", "failed", "ingested"]  # a, again/a, b
     assert results[1].error == f"{logs / 'again' / 'a.mcap'}: has the same name as {logs / 'a.mcap'}; " \
                                "a store knows logs by name: rename one"
+
+
+def test_a_log_that_fails_while_writing_leaves_no_clip_file(tmp_path, logs, monkeypatch):
+    store = tmp_path / "store"
+    real = ingest_module.write_clip
+
+    def fails_at_the_second_clip(root, clip_id, frames):
+        if clip_id.endswith("_001"):
+            raise OSError("disk full")
+        return real(root, clip_id, frames)
+
+    monkeypatch.setattr(ingest_module, "write_clip", fails_at_the_second_clip)
+    results = ingest_into(store, logs / "a.mcap", "clips.max_length_s=1.0")
+    assert [r.status for r in results] == ["failed"] and "disk full" in results[0].error
+    assert list((store / "clips").iterdir()) == []

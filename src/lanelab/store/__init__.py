@@ -5,6 +5,7 @@
 - :mod:`~lanelab.store.manifest`: ``manifest.json``, read and written;
 - :mod:`~lanelab.store.clip_file`: clip files written and read (the only code that names columns);
 - :mod:`~lanelab.store.reader`: :class:`ClipStore`, what the datasets read;
+- :mod:`~lanelab.store.writer`: :class:`StoreWriter`, the one update policy of the writing tools;
 - :mod:`~lanelab.store.image_codec`: the stored images' encodings, decoded to RGB.
 """
 
@@ -20,3 +21,4 @@ from lanelab.store.manifest import (
 from lanelab.store.reader import ClipStore
 from lanelab.store.records import FrameRecord, LaneRecord
 from lanelab.store.schema import CLIP_SCHEMA, SPLITS, clip_path, manifest_path
+from lanelab.store.writer import MADE_BY_OPTION, StoreRefused, StoreWriter

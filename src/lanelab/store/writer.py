@@ -1,0 +1,134 @@
+"""Updating a clip store: the one policy that every tool writing a store follows.
+
+A :class:`StoreWriter` holds a store for one run of a writing tool (``lanelab-ingest``,
+``lanelab-openlane``):
+
+- **open or refuse**: a new store takes the tool's ``options``. An existing store's manifest
+  is read (a garbled one raises :class:`~lanelab.store.manifest.ManifestError` and nothing is
+  overwritten); a store that another tool made (``options["made_by"]``) is refused, and so
+  is one made with other options, unless ``overwrite``: then it takes these options and no
+  source counts as unchanged.
+- **skip unchanged**: a source is known by its name (``source_name(path)``);
+  :meth:`StoreWriter.kept_sha256` gives the sha256 of the version the store holds, when all
+  of its clip files are there, so that the tool keeps a source whose sha256 is the same.
+- **replace and commit**: the tool writes a source's clip files
+  (:func:`~lanelab.store.clip_file.write_clip`, each atomically, in any process), then
+  :meth:`StoreWriter.commit` puts the source and its clips in the manifest in place of the
+  earlier version of the same name, writes the manifest atomically and only then deletes the
+  clip files that the manifest no longer lists. :meth:`StoreWriter.discard` deletes the files
+  of a source that failed half-way. The store on disk is consistent at every moment.
+
+The manifest lists sources by path and clips by id, whatever order they were written in.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+from lanelab.store.manifest import ClipEntry, Manifest, SourceEntry, read_manifest, write_manifest
+from lanelab.store.schema import clip_path, manifest_path
+
+MADE_BY_OPTION = "made_by"  # names the tool that made a store (lanelab-ingest records none)
+
+
+class StoreRefused(ValueError):
+    """An existing store that this writer must not update: another tool made it, or other options."""
+
+
+class StoreWriter:
+    """A clip store opened for updating with ``options``, the options that shape its contents.
+
+    source_name: a source path -> the name it is known by; a source committed under a name
+        replaces the earlier source of that name.
+    overwrite: take a store made with other options, re-writing every source.
+    marks: names of options that list clip ids (e.g. ``clips_without_pose``): not compared
+        when opening, kept up to date by :meth:`commit`.
+    """
+
+    def __init__(
+        self,
+        root: str | Path,
+        options: Mapping[str, Any],
+        source_name: Callable[[str], str],
+        *,
+        overwrite: bool = False,
+        marks: Sequence[str] = (),
+    ) -> None:
+        self.root = Path(root)
+        self._source_name = source_name
+        self._overwrite = overwrite
+        self._marks = tuple(marks)
+        self.manifest = self._open(dict(options))
+
+    def _open(self, options: dict[str, Any]) -> Manifest:
+        if not manifest_path(self.root).exists():
+            return Manifest(options={**options, **{mark: [] for mark in self._marks}})
+        manifest = read_manifest(self.root)
+        marked = {mark: manifest.options.get(mark, []) for mark in self._marks}
+        made_with = {key: value for key, value in manifest.options.items() if key not in self._marks}
+        made_by, by = made_with.get(MADE_BY_OPTION), options.get(MADE_BY_OPTION)
+        if made_by != by:
+            raise StoreRefused(f"{manifest_path(self.root)} holds a store that this tool did not make "
+                               f"({MADE_BY_OPTION}: {made_by!r} -> {by!r}); choose another output")
+        if made_with != options:
+            if not self._overwrite:
+                changed = ", ".join(_differences(made_with, options)) or "unrecorded options"
+                raise StoreRefused(f"{manifest_path(self.root)} was made with other options ({changed}); write "
+                                   "to a new output, or overwrite the store (overwrite=true) to re-write its "
+                                   "sources with these")
+            manifest.options = options
+        manifest.options = {**manifest.options, **marked}
+        return manifest
+
+    def kept_sha256(self, path: str, split: str | None = None) -> str | None:
+        """The sha256 of the store's version of the source at ``path`` (known by its name), if
+        its clips may stay: every clip file of it is there, all in ``split`` when one is given,
+        and the store is not being overwritten. None when the source must be written."""
+        name = self._source_name(path)
+        source = next((s for s in self.manifest.sources if self._source_name(s.path) == name), None)
+        if source is None or self._overwrite:
+            return None
+        clips = [clip for clip in self.manifest.clips if clip.source == source.path]
+        whole = all(clip_path(self.root, clip.clip_id).exists() and split in (None, clip.split) for clip in clips)
+        return source.sha256 if whole else None
+
+    def commit(self, source: SourceEntry, clips: Sequence[ClipEntry], marks: Iterable[str] = ()) -> None:
+        """Put ``source`` and its ``clips`` (their files written) in the manifest in place of the
+        earlier source of its name, write the manifest, then delete the clip files it dropped.
+
+        marks: the writer's marks that the new clips get (the clips they replace lose theirs).
+        """
+        name = self._source_name(source.path)
+        replaced = {s.path for s in self.manifest.sources if self._source_name(s.path) == name}
+        new_ids = {clip.clip_id for clip in clips}
+        stale = {clip.clip_id for clip in self.manifest.clips if clip.source in replaced} - new_ids
+        self.manifest.sources = sorted([s for s in self.manifest.sources if s.path not in replaced] + [source],
+                                       key=lambda s: s.path)
+        self.manifest.clips = sorted([c for c in self.manifest.clips if c.source not in replaced] + list(clips),
+                                     key=lambda c: c.clip_id)
+        given = set(marks)
+        for mark in self._marks:
+            others = set(self.manifest.options[mark]) - stale - new_ids
+            self.manifest.options[mark] = sorted(others | new_ids if mark in given else others)
+        write_manifest(self.root, self.manifest)
+        self.discard(stale)
+
+    def discard(self, clip_ids: Iterable[str]) -> None:
+        """Delete the files of these clips, but for those the manifest lists (a source that failed
+        after writing some of its clips leaves the store as it was)."""
+        listed = {clip.clip_id for clip in self.manifest.clips}
+        for clip_id in set(clip_ids) - listed:
+            clip_path(self.root, clip_id).unlink(missing_ok=True)
+
+
+def _differences(old: Mapping[str, Any], new: Mapping[str, Any], prefix: str = "") -> list[str]:
+    """``key: old -> new`` for each option that differs, nested keys dotted."""
+    out = []
+    for key in sorted(set(old) | set(new)):
+        a, b = old.get(key), new.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += _differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            out.append(f"{prefix}{key}: {a!r} -> {b!r}")
+    return out
