@@ -5,9 +5,9 @@ A :class:`StoreWriter` holds a store for one run of a writing tool (``lanelab-in
 
 - **open or refuse**: a new store takes the tool's ``options``. An existing store's manifest
   is read (a garbled one raises :class:`~lanelab.store.manifest.ManifestError` and nothing is
-  overwritten); a store that another tool made (``options["made_by"]``) is refused, and so
-  is one made with other options, unless ``overwrite``: then it takes these options and no
-  source counts as unchanged.
+  overwritten). A store that another tool made (``options["made_by"]``) is always refused;
+  one made with other options is refused unless ``overwrite``: then it takes these options
+  and no source counts as unchanged.
 - **skip unchanged**: a source is known by its name (``source_name(path)``);
   :meth:`StoreWriter.kept_sha256` gives the sha256 of the version the store holds, when all
   of its clip files are there, so that the tool keeps a source whose sha256 is the same.
