@@ -50,11 +50,10 @@ from lanelab.data.clip_store import (
     write_manifest,
 )
 from lanelab.data.image_codec import compressed_format, compressed_size
-from lanelab.evaluation.scenario_lists import read_scenario_lists
-from lanelab.metrics.json_files import LaneFileError, load_json_object
-from lanelab.metrics.scenarios import OPENLANE_SCENARIOS
+from lanelab.json_files import LaneFileError, load_json_object
+from lanelab.openlane.file_paths import FILE_PATH_TAG
+from lanelab.openlane.lists import OPENLANE_SCENARIOS, read_scenario_lists
 
-FILE_PATH_TAG = "openlane.file_path"
 MADE_BY = "lanelab-openlane"
 LANE_FRAME = "OpenLane evaluator's ground frame: x right, y forward, z up; origin below the camera"
 # scene.json key -> frame tag (the tag keys of the scenario tables)

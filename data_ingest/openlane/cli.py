@@ -18,7 +18,7 @@ from omegaconf.errors import MissingMandatoryValue
 from data_ingest.openlane.config import SCHEMA_NAME, OpenLaneAdapterConfig, validate
 from lanelab.config_checks import ConfigError, register_schema
 from lanelab.data.clip_store import ManifestError
-from lanelab.metrics.json_files import LaneFileError
+from lanelab.json_files import LaneFileError
 
 register_schema(SCHEMA_NAME, OpenLaneAdapterConfig)
 
