@@ -2,8 +2,8 @@
 
 The defaults live in ``conf/ingest.yaml``; this module only says which keys exist, their
 types (OmegaConf rejects an unknown key or a wrong type by name) and which values make
-sense (:func:`validate`). Topic and frame names are the drive-log contract's, shared with
-``lanelab-synth``.
+sense (:func:`validate`). Topic and frame names are the drive-log contract's
+(:mod:`data_ingest.contract`), shared with ``lanelab-synth``.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any, Optional, Sequence
 
 from omegaconf import MISSING
 
-from data_ingest.synth.config import FramesConfig, TopicsConfig
+from data_ingest.contract import FramesConfig, TopicsConfig, check_names
 from lanelab.config_checks import ConfigError, check_choice, check_positive, load_config
 
 SPLIT_BY = ("log", "clip")
@@ -81,10 +81,7 @@ def validate(cfg: IngestConfig) -> IngestConfig:
     ratios = {name: getattr(cfg.split, name) for name in ("train", "val", "test")}
     if any(value < 0 for value in ratios.values()) or abs(sum(ratios.values()) - 1) > 1e-6:
         raise ConfigError(f"split ratios {ratios} must be >= 0 and sum to 1")
-    for group in ("topics", "frames"):
-        for key, value in asdict(getattr(cfg, group)).items():
-            if not value:
-                raise ConfigError(f"{group}.{key} is empty")
+    check_names(cfg.topics, cfg.frames)
     return cfg
 
 

@@ -1,16 +1,6 @@
 """The messages of a drive log, in any encoding of the contract, as encoding-neutral records.
 
-Types accepted per role (DESIGN.md, "Drive-log contract"); ROS 2 names with or without ``/msg/``:
-
-=============  ===============================================  ==================================
-role           ROS 2 (``ros2msg`` / ``cdr``)                    Foxglove (``protobuf`` or ``json``)
-=============  ===============================================  ==================================
-image          sensor_msgs/CompressedImage, sensor_msgs/Image   foxglove.CompressedImage, RawImage
-calibration    sensor_msgs/CameraInfo                           foxglove.CameraCalibration
-transforms     tf2_msgs/TFMessage                               foxglove.FrameTransform(s)
-lanes, tags    —                                                lanelab.Lanes3D, lanelab.Tags (json)
-=============  ===============================================  ==================================
-
+The types each role accepts are the drive-log contract's (:mod:`data_ingest.contract`).
 CDR and protobuf payloads are decoded by the ``mcap`` library's decoder factories, JSON
 with ``json.loads``; Foxglove JSON writes bytes as base64 and times as ``{sec, nsec}``.
 ``lanelab.Lanes3D`` labels, large arrays of numbers, are parsed in batches by Arrow's JSON
@@ -33,21 +23,12 @@ from mcap.records import Schema
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
+from data_ingest.contract import CALIBRATION, IMAGE, JSON_ONLY, TAGS, TRANSFORMS, TYPES
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import RawMessage
 from lanelab.store.image_codec import COMPRESSED_ENCODINGS, RAW_CHANNELS, compressed_format, compressed_size
 
 NS = 1_000_000_000
-
-IMAGE, CALIBRATION, TRANSFORMS, LANES, TAGS = "image", "calibration", "transforms", "lanes", "tags"
-TYPES = {
-    IMAGE: ("sensor_msgs/CompressedImage", "sensor_msgs/Image", "foxglove.CompressedImage", "foxglove.RawImage"),
-    CALIBRATION: ("sensor_msgs/CameraInfo", "foxglove.CameraCalibration"),
-    TRANSFORMS: ("tf2_msgs/TFMessage", "foxglove.FrameTransform", "foxglove.FrameTransforms"),
-    LANES: ("lanelab.Lanes3D",),
-    TAGS: ("lanelab.Tags",),
-}
-JSON_ONLY = (LANES, TAGS)  # lanelab's own messages exist only as JSON
 
 
 class MessageError(ValueError):

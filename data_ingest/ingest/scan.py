@@ -15,15 +15,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from data_ingest.contract import CALIBRATION, IMAGE, LANES, TAGS, TRANSFORMS
 from data_ingest.ingest.config import IngestConfig
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import ReadReport, read_messages
 from data_ingest.ingest.messages import (
-    CALIBRATION,
-    IMAGE,
-    LANES,
-    TAGS,
-    TRANSFORMS,
     CalibrationMsg,
     Decoder,
     LanesMsg,

@@ -40,9 +40,9 @@ import numpy as np
 from data_ingest.openlane.annotation import Annotation, read_annotation, timestamp_ns
 from data_ingest.openlane.config import OpenLaneAdapterConfig
 from lanelab.config_checks import ConfigError
-from lanelab.evaluation.scenario_lists import read_scenario_lists
-from lanelab.metrics.json_files import LaneFileError, load_json_object
-from lanelab.metrics.scenarios import OPENLANE_SCENARIOS
+from lanelab.json_files import LaneFileError, load_json_object
+from lanelab.openlane.file_paths import FILE_PATH_TAG
+from lanelab.openlane.lists import OPENLANE_SCENARIOS, read_scenario_lists
 from lanelab.store import (
     MADE_BY_OPTION,
     ClipEntry,
@@ -54,7 +54,6 @@ from lanelab.store import (
 )
 from lanelab.store.image_codec import compressed_format, compressed_size
 
-FILE_PATH_TAG = "openlane.file_path"
 MADE_BY = "lanelab-openlane"
 LANE_FRAME = "OpenLane evaluator's ground frame: x right, y forward, z up; origin below the camera"
 WITHOUT_POSE = "clips_without_pose"  # the manifest's list of the clips whose frames have no pose

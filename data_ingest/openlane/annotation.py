@@ -3,7 +3,7 @@
 The lane frame of an OpenLane store
 -----------------------------------
 A store made by ``lanelab-openlane`` uses as its lane frame the official evaluator's ground
-frame (:func:`lanelab.metrics.openlane_io.ground_from_camera`): the lane-frame axes of
+frame (:func:`lanelab.openlane.ground_frame.ground_from_camera`): the lane-frame axes of
 DESIGN.md (x right, y forward, z up; the vehicle's axes re-ordered), with the origin on the
 vehicle frame's ground plane (z = 0) **directly below the camera**, not below the vehicle
 origin (``base_link``) as in stores ingested from drive logs: the evaluator drops the
@@ -43,15 +43,9 @@ from typing import Any
 import numpy as np
 
 from lanelab.geometry.frames import T_BASE_LANE
-from lanelab.metrics.json_files import (
-    LaneFileError,
-    load_json_object,
-    numeric_array,
-    require,
-    require_list,
-)
-from lanelab.metrics.openlane_io import camera_lane_to_ground, ground_from_camera
-from lanelab.metrics.temporal_consistency import NO_TRACK
+from lanelab.json_files import LaneFileError, load_json_object, numeric_array, require, require_list
+from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_camera
+from lanelab.openlane.read import NO_TRACK
 from lanelab.store import LaneRecord
 
 NS_PER_NAME_UNIT = 10  # file names count 10 ns units (microseconds followed by "00")

@@ -17,7 +17,7 @@ from omegaconf.errors import MissingMandatoryValue
 
 from data_ingest.openlane.config import SCHEMA_NAME, OpenLaneAdapterConfig, validate
 from lanelab.config_checks import ConfigError, register_schema
-from lanelab.metrics.json_files import LaneFileError
+from lanelab.json_files import LaneFileError
 from lanelab.store import ManifestError
 
 register_schema(SCHEMA_NAME, OpenLaneAdapterConfig)

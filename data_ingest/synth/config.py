@@ -12,6 +12,7 @@ from typing import Optional, Sequence
 
 from omegaconf import MISSING
 
+from data_ingest.contract import FramesConfig, TopicsConfig, check_names
 from lanelab.config_checks import ConfigError, check_choice, check_positive, load_config
 
 ENCODINGS = ("ros2", "foxglove")
@@ -48,23 +49,6 @@ class WorldConfig:
     traffic_density: float = MISSING
     max_range_m: float = MISSING
     ego_speed_mps: Optional[float] = None
-
-
-@dataclass
-class TopicsConfig:
-    image: str = MISSING
-    calibration: str = MISSING
-    tf: str = MISSING
-    tf_static: str = MISSING
-    lanes: str = MISSING
-    lanes2d: str = MISSING
-    tags: str = MISSING
-
-
-@dataclass
-class FramesConfig:
-    world: str = MISSING
-    ego: str = MISSING
 
 
 @dataclass
@@ -140,6 +124,7 @@ def validate(cfg: SynthConfig) -> SynthConfig:
     check_positive("world.max_range_m", world.max_range_m)
     if world.ego_speed_mps is not None and not 0 < world.ego_speed_mps <= 60:
         raise ConfigError(f"world.ego_speed_mps={world.ego_speed_mps} must be in (0, 60] (or null for the environment's)")
+    check_names(cfg.topics, cfg.frames)
     return cfg
 
 

@@ -10,19 +10,16 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
+from data_ingest.contract import LANES2D_TYPE, LANES3D_TYPE, TAGS_TYPE
 from data_ingest.synth.foxglove_json import TIME_SCHEMA
 from data_ingest.synth.frame import Lane2D, LaneLabel
-
-LANES3D = "lanelab.Lanes3D"
-LANES2D = "lanelab.Lanes2D"
-TAGS = "lanelab.Tags"
 
 _POINT3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 _POINT2 = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
 
 SCHEMAS: dict[str, dict[str, Any]] = {
-    LANES3D: {
-        "title": LANES3D,
+    LANES3D_TYPE: {
+        "title": LANES3D_TYPE,
         "description": "3D lane lines; points in frame_id at timestamp",
         "type": "object",
         "properties": {
@@ -44,8 +41,8 @@ SCHEMAS: dict[str, dict[str, Any]] = {
         },
         "required": ["timestamp", "frame_id", "lanes"],
     },
-    LANES2D: {
-        "title": LANES2D,
+    LANES2D_TYPE: {
+        "title": LANES2D_TYPE,
         "description": "2D lane detections in the image of frame_id, pixel coordinates",
         "type": "object",
         "properties": {
@@ -66,8 +63,8 @@ SCHEMAS: dict[str, dict[str, Any]] = {
         },
         "required": ["timestamp", "frame_id", "lanes"],
     },
-    TAGS: {
-        "title": TAGS,
+    TAGS_TYPE: {
+        "title": TAGS_TYPE,
         "description": "Scenario tags (weather, daytime, environment, curvature, ...)",
         "type": "object",
         "properties": {

@@ -32,6 +32,7 @@ from mcap.writer import LIBRARY_IDENTIFIER, CompressionType
 from mcap.writer import Writer as McapWriter
 
 import lanelab
+from data_ingest.contract import LANES2D_TYPE, LANES3D_TYPE, TAGS_TYPE
 from data_ingest.synth import lanelab_msgs
 from data_ingest.synth.config import SynthConfig
 from data_ingest.synth.encoders import (
@@ -224,8 +225,7 @@ def _add_channels(log: _Recorder, encoder: MessageEncoder, cfg: SynthConfig) -> 
     for topic, role in ((topics.tf_static, TRANSFORMS), (topics.tf, TRANSFORMS),
                         (topics.image, image_role), (topics.calibration, CALIBRATION)):
         log.add_channel(topic, encoder.schema(role), encoder.message_encoding)
-    for topic, name in ((topics.lanes, lanelab_msgs.LANES3D), (topics.lanes2d, lanelab_msgs.LANES2D),
-                        (topics.tags, lanelab_msgs.TAGS)):
+    for topic, name in ((topics.lanes, LANES3D_TYPE), (topics.lanes2d, LANES2D_TYPE), (topics.tags, TAGS_TYPE)):
         schema = Schema(name, SchemaEncoding.JSONSchema, dumps(lanelab_msgs.SCHEMAS[name]))
         log.add_channel(topic, schema, MessageEncoding.JSON)
 

@@ -26,8 +26,9 @@ from lanelab.evaluation.blind_prior import (
 from lanelab.evaluation.cli import run
 from lanelab.evaluation.config import load_eval_config
 from lanelab.evaluation.report import build_report, to_json, to_markdown, to_text
-from lanelab.evaluation.scenario_lists import read_scenario_lists, scenarios_of
 from lanelab.metrics.openlane import OpenLaneConfig, evaluate, evaluate_frames, summarize
+from lanelab.metrics.scenarios import scenarios_of
+from lanelab.openlane.lists import read_scenario_lists
 from lanelab.store import ClipEntry, LaneRecord, Manifest, write_clip, write_manifest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data"))  # the data tests' store helpers

@@ -11,7 +11,7 @@ from eval_helpers import NAMES, write_prediction_set
 
 from lanelab.evaluation.cli import run
 from lanelab.evaluation.config import ConfigError, load_eval_config
-from lanelab.metrics.json_files import LaneFileError
+from lanelab.json_files import LaneFileError
 
 
 def options(data, out, *extra):

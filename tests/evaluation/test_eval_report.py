@@ -6,8 +6,9 @@ import pytest
 from eval_helpers import NAMES, write_prediction_set
 
 from lanelab.evaluation.report import build_report, to_json, to_markdown, to_text, write_report
-from lanelab.evaluation.scenario_lists import read_scenario_lists, scenarios_of
 from lanelab.metrics.openlane import OpenLaneConfig, evaluate_frames
+from lanelab.metrics.scenarios import scenarios_of
+from lanelab.openlane.lists import read_scenario_lists
 
 
 def report_of(tmp_path, config=OpenLaneConfig(), with_scenarios=True):

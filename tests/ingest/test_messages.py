@@ -9,7 +9,8 @@ from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from mcap.records import Channel, Schema
 
 from data_ingest.ingest.mcap_reader import RawMessage
-from data_ingest.ingest.messages import IMAGE, Decoder, LanesMsg, MessageError, parse_lanes3d
+from data_ingest.contract import IMAGE
+from data_ingest.ingest.messages import Decoder, LanesMsg, MessageError, parse_lanes3d
 from data_ingest.synth.encoders import RAW_IMAGE, FoxgloveProtobufEncoder
 
 

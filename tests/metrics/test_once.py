@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from lanelab.metrics.json_files import LaneFileError
+from lanelab.json_files import LaneFileError
 from lanelab.metrics.once import (
     OnceConfig,
     best,

@@ -6,13 +6,8 @@ import numpy as np
 import pytest
 
 from lanelab.metrics.openlane import evaluate, evaluate_frames
-from lanelab.metrics.openlane_io import (
-    OpenLaneFormatError,
-    camera_lane_to_ground,
-    ground_from_camera,
-    read_ground_truth,
-    read_prediction,
-)
+from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_camera
+from lanelab.openlane.read import OpenLaneFormatError, read_ground_truth, read_prediction
 
 CAMERA_HEIGHT = 1.5
 # Camera axes aligned with the vehicle, 1.6 m ahead and 0.1 m left of its origin.

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from lanelab.metrics.openlane import evaluate_frame
-from lanelab.metrics.openlane_io import read_test_list
 from lanelab.metrics.scenarios import (
     list_scenarios,
     markdown_table,
@@ -14,6 +13,7 @@ from lanelab.metrics.scenarios import (
     scenario_rows,
     tag_scenarios,
 )
+from lanelab.openlane.lists import read_test_list
 
 
 def straight(x):

@@ -18,10 +18,11 @@ from openlane_helpers import (
     write_tiny_openlane,
 )
 
-from data_ingest.openlane.adapter import FILE_PATH_TAG, adapt
-from data_ingest.openlane.predictions import file_path_of, write_prediction
+from data_ingest.openlane.adapter import adapt
 from data_ingest.synth.config import ConfigError
 from lanelab.metrics.openlane import OpenLaneConfig, evaluate, evaluate_frame
+from lanelab.openlane.file_paths import FILE_PATH_TAG, file_path_of
+from lanelab.openlane.write import write_prediction
 from lanelab.store import CLIP_SCHEMA, ClipStore, Manifest, write_manifest
 
 

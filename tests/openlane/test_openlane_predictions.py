@@ -5,8 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from data_ingest.openlane.predictions import file_path_of, prediction_path, write_prediction
-from lanelab.metrics.openlane_io import read_prediction
+from lanelab.openlane.file_paths import file_path_of, json_path
+from lanelab.openlane.read import read_prediction
+from lanelab.openlane.write import write_prediction
 from lanelab.store import FrameRecord, LaneRecord
 
 FILE_PATH = "validation/segment-x/155840113564752100.jpg"
@@ -21,7 +22,7 @@ def lane(category, visibility):
 def test_only_visible_points_are_written_and_short_lanes_left_out(tmp_path):
     lanes = [lane(2, [1, 1, 0.9, 0.4, 0.0]), lane(7, [1, 0.2, 0.1]), lane(20, [0.8, 0.6])]
     path = write_prediction(tmp_path, FILE_PATH, lanes)
-    assert path == tmp_path / "validation/segment-x/155840113564752100.json" == prediction_path(tmp_path, FILE_PATH)
+    assert path == tmp_path / "validation/segment-x/155840113564752100.json" == json_path(tmp_path, FILE_PATH)
 
     data = json.loads(path.read_text())
     assert data["file_path"] == FILE_PATH

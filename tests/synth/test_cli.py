@@ -24,6 +24,8 @@ def run_synth(*args: str) -> subprocess.CompletedProcess:
         ("duration_s=-3", "duration_s"),
         ("no_such_key=1", "no_such_key"),
         ("num_logs=many", "num_logs"),
+        ("topics.lanes=", "topics.lanes is empty"),
+        ("frames.ego=", "frames.ego is empty"),
     ],
 )
 def test_bad_option_fails_before_writing(tmp_path, option, message):

@@ -2,6 +2,5 @@
 
 - ``cli``: ``lanelab-eval`` (options: ``config``, ``conf/eval.yaml``);
 - ``report``: the tables (overall, scenario F1, per scenario) as text, Markdown and JSON;
-- ``scenario_lists``: OpenLane's six scenario lists as scenarios of a test list;
 - ``pictures``: a few frames with ground truth and prediction over the image and in a top view.
 """

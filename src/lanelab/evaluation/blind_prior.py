@@ -33,7 +33,6 @@ gives what :func:`~lanelab.metrics.openlane.evaluate` gives on the files of
 
 from __future__ import annotations
 
-import json
 import os
 from collections import Counter
 from dataclasses import asdict, dataclass
@@ -42,11 +41,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from lanelab.atomic_file import atomic_output
 from lanelab.evaluation.report import Reference, build_reference
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frame
-from lanelab.metrics.openlane_io import GroundTruthFrame, read_ground_truth, read_test_list
 from lanelab.metrics.scenarios import Scenario
+from lanelab.openlane.lists import read_test_list
+from lanelab.openlane.read import GroundTruthFrame, read_ground_truth
+from lanelab.openlane.write import write_json
 
 NAME = "blind prior"  # the row label in reports and tables
 NEAR_Y = (5.0, 20.0)  # metres ahead: the window of a lane's lateral offset
@@ -236,10 +236,7 @@ def write_blind_prior_predictions(
     ``evaluate(gt_dir, out_dir, test_list)``); out_dir."""
     out = Path(out_dir)
     for rel, gt in _ground_truth(gt_dir, test_list):
-        path = out / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_output(path) as tmp:
-            tmp.write_text(json.dumps(prior.prediction_json(gt.file_path)))
+        write_json(out / rel, prior.prediction_json(gt.file_path))
     return out
 
 

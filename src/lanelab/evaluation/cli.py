@@ -28,7 +28,7 @@ from omegaconf.errors import MissingMandatoryValue
 from lanelab.config_checks import ConfigError, register_schema
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
-from lanelab.metrics.json_files import LaneFileError
+from lanelab.json_files import LaneFileError
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
 
 register_schema(SCHEMA_NAME, EvalConfig)
@@ -57,7 +57,8 @@ def run(cfg: EvalConfig) -> list[Path]:
         write_png,
     )
     from lanelab.evaluation.report import build_report, to_text, write_report
-    from lanelab.evaluation.scenario_lists import read_scenario_lists, scenarios_of
+    from lanelab.metrics.scenarios import scenarios_of
+    from lanelab.openlane.lists import read_scenario_lists
 
     if cfg.checkpoint is not None:
         from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here

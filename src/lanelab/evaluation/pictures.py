@@ -17,8 +17,8 @@ import cv2
 import numpy as np
 
 from lanelab.atomic_file import atomic_output
-from lanelab.metrics.json_files import LaneFileError, load_json_object
-from lanelab.metrics.openlane_io import ground_from_camera, read_ground_truth, read_prediction
+from lanelab.json_files import LaneFileError
+from lanelab.openlane.read import read_ground_truth, read_prediction
 from lanelab.viz import draw_lanes_on_image, draw_top_view
 
 TOP_VIEW_X_RANGE = (-15.0, 15.0)  # metres: the evaluated |x| < 10 and a margin
@@ -98,10 +98,8 @@ def read_openlane_frame(
     The lane frame is the evaluator's ground frame, T_lane_cam its conversion of the extrinsic.
     """
     gt_path = Path(gt_dir) / frame_id
-    gt = read_ground_truth(gt_path)  # validates the file: the keys read below are well-formed
-    data = load_json_object(gt_path)
-    K = np.array(data["intrinsic"], dtype=np.float64)
-    T_lane_cam = ground_from_camera(np.array(data["extrinsic"], dtype=np.float64))
+    gt = read_ground_truth(gt_path)
+    K, T_lane_cam = gt.K, gt.T_ground_cam
     pred = read_prediction(Path(pred_dir) / frame_id)
     if images_dir is None:
         size = (max(int(round(2 * K[1, 2])), 16), max(int(round(2 * K[0, 2])), 16))

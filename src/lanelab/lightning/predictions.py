@@ -79,11 +79,6 @@ class DenseLanes:
         return lanes
 
 
-def frame_path(clip_id: str, timestamp_ns: int) -> str:
-    """A frame's OpenLane ``file_path``: an image path, whose JSON files end in .json instead."""
-    return f"{clip_id}/{timestamp_ns}.jpg"
-
-
 def predicted_lanes(
     net: SparseLaneSTP, outputs: Mapping[str, Any], y: Tensor, threshold: float, nms: tuple[float, float] | None = None
 ) -> DenseLanes:

@@ -36,7 +36,6 @@ from lanelab.lightning.pictures import log_pictures, prediction_picture
 from lanelab.lightning.predictions import (
     DenseLanes,
     PredictionBatch,
-    frame_path,
     ground_truth_lanes,
     predicted_lanes,
 )
@@ -46,6 +45,7 @@ from lanelab.models.backbone import load_torchvision_weights
 from lanelab.models.losses import InstanceMaskLoss, SparseLaneSTPLoss
 from lanelab.models.memory_queue import MemoryState
 from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.openlane.file_paths import frame_path
 
 FRAME_KEYS = ("images", "K", "T_lane_cam", "T_world_lane")
 TARGET_KEYS = ("gt_y", "gt_x", "gt_z", "gt_vis", "gt_category", "gt_mask")

@@ -6,7 +6,7 @@
 - ``once``: the ONCE-3DLanes metric.
 """
 
-from lanelab.metrics.json_files import LaneFileError
+from lanelab.json_files import LaneFileError
 from lanelab.metrics.openlane import (
     FrameResult,
     OpenLaneConfig,
@@ -15,7 +15,7 @@ from lanelab.metrics.openlane import (
     evaluate_frames,
     summarize,
 )
-from lanelab.metrics.openlane_io import OpenLaneFormatError
+from lanelab.openlane.read import OpenLaneFormatError
 
 __all__ = [
     "FrameResult",

@@ -42,13 +42,7 @@ from typing import Iterable, Sequence
 import cv2
 import numpy as np
 
-from lanelab.metrics.json_files import (
-    LaneFileError,
-    load_json_object,
-    numeric_array,
-    require,
-    require_list,
-)
+from lanelab.json_files import LaneFileError, load_json_object, numeric_array, require, require_list
 from lanelab.metrics.munkres import munkres_assignment
 
 # Positions along a GT lane (fractions of its length) where the distance is measured.

@@ -31,12 +31,9 @@ import numpy as np
 
 from lanelab.metrics.assignment import min_cost_assignment
 from lanelab.metrics.lane_sampling import overlaps_y_range, prune_to_box, resample_in_y
-from lanelab.metrics.openlane_io import (
-    OpenLaneFormatError,
-    read_ground_truth,
-    read_prediction,
-    read_test_list,
-)
+from lanelab.openlane.lists import read_test_list
+from lanelab.openlane.read import OpenLaneFormatError, read_ground_truth, read_prediction
+from lanelab.openlane.write import VISIBILITY_THRESHOLD
 
 # Curbside ids (DESIGN.md "Lane categories").
 LEFT_CURBSIDE, RIGHT_CURBSIDE = 20, 21
@@ -60,9 +57,8 @@ class OpenLaneConfig:
     # Extension: Vis-IoU of the matched pairs (see _visibility_iou).
     vis_iou: bool = False
     # Predicted points of visibility at or below this are not part of the lane (lanelab's
-    # OpenLane writer leaves them out of the JSON); also the "visible" cut of Vis-IoU. 0.5,
-    # as the visibility of lanelab's training targets (lanelab.data.targets).
-    visibility_threshold: float = 0.5
+    # OpenLane writer leaves them out of the JSON); also the "visible" cut of Vis-IoU.
+    visibility_threshold: float = VISIBILITY_THRESHOLD
 
     @classmethod
     def long_range(cls) -> OpenLaneConfig:
@@ -191,7 +187,7 @@ def evaluate_frame(
     """Score one frame.
 
     gt_lanes[i]: (N_i, 3) points in the evaluator's ground frame (x right, y forward, z up;
-    see :func:`lanelab.metrics.openlane_io.ground_from_camera`), gt_visibility[i]: (N_i,),
+    see :func:`lanelab.openlane.ground_frame.ground_from_camera`), gt_visibility[i]: (N_i,),
     points with visibility <= 0 are dropped. pred_lanes[j]: (M_j, 3) or (M_j, 2) in the same
     frame (2 columns: z = 0). pred_visibility[j] (optional): (M_j,) in [0, 1]; points at or
     below config.visibility_threshold are dropped, so that the result equals that of a prediction

@@ -11,7 +11,7 @@ Frames: predictions and ground truth must be in one common frame, the lane frame
 y forward, z up); no extrinsic conversion happens here. lanelab's lane frame has its origin
 on the ground under ``base_link`` (DESIGN.md), whereas the official evaluator converts
 OpenLane's GT into a ground frame whose origin lies under the *camera*
-(:func:`~lanelab.metrics.openlane_io.ground_from_camera`). The y-sampling (3 .. 102 m) and
+(:func:`~lanelab.openlane.ground_frame.ground_from_camera`). The y-sampling (3 .. 102 m) and
 the |x| < 10 m box are measured from the origin, so the numbers are the official ones for
 GT converted the official way, and lanelab-frame numbers for lanelab's own clips.
 

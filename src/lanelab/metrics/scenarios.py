@@ -5,8 +5,9 @@ A scenario is a named set of frame ids, in a column group of the table. Two sour
 - lists: OpenLane's six test cases (``up_down``, ``curve``, ``extreme_weather``, ``night``,
   ``intersection``, ``merge_split``), whose official lists are text files of frame paths.
   :func:`list_scenarios` takes them as a mapping name -> frame ids; read a list file with
-  :func:`lanelab.metrics.openlane_io.read_test_list` to get the ids that
-  :func:`lanelab.metrics.openlane.evaluate_frames` uses.
+  :func:`lanelab.openlane.lists.read_test_list` to get the ids that
+  :func:`lanelab.metrics.openlane.evaluate_frames` uses, or a folder of them with
+  :func:`lanelab.openlane.lists.read_scenario_lists` and pass it to :func:`scenarios_of`.
 - tags: the clip store's per-frame ``tags`` (environment, daytime, weather, curvature,
   slope, merge_split, occlusion... free strings). :func:`tag_scenarios` makes one scenario
   per value of each tag key, as SparseLaneSTP's Table 7 (Environment, Daytime / Weather,
@@ -23,16 +24,7 @@ from dataclasses import dataclass
 from typing import Iterable, Mapping, Sequence
 
 from lanelab.metrics.openlane import FrameResult, summarize
-
-# OpenLane's scenario lists -> column labels, in the order of SparseLaneSTP's Table 4.
-OPENLANE_SCENARIOS = {
-    "up_down": "Up & Down",
-    "curve": "Curve",
-    "extreme_weather": "Extreme Weather",
-    "night": "Night",
-    "intersection": "Intersection",
-    "merge_split": "Merge & Split",
-}
+from lanelab.openlane.lists import OPENLANE_SCENARIOS, frame_key
 
 # Tag key -> column group of SparseLaneSTP's Table 7 (daytime and weather share a group).
 TABLE7_GROUPS = {
@@ -60,6 +52,17 @@ def list_scenarios(
     """One scenario per list (name -> frame ids), labelled by `labels` (else by its name),
     in the order of `lists`."""
     return [Scenario(group, labels.get(name, name), frozenset(ids)) for name, ids in lists.items()]
+
+
+def scenarios_of(lists: Mapping[str, frozenset[str]], frame_ids: Iterable[str]) -> list[Scenario]:
+    """The scenarios of scenario lists (case name -> frame keys, as
+    :func:`~lanelab.openlane.lists.read_scenario_lists` reads them) over frame_ids (test-list
+    ids, as evaluate_frames names frames): each holds the ids whose frame_key its list names;
+    labelled as in the papers."""
+    frame_ids = list(frame_ids)
+    return list_scenarios({
+        name: [frame for frame in frame_ids if frame_key(frame) in keys] for name, keys in lists.items()
+    })
 
 
 def tag_scenarios(

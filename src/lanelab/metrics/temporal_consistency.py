@@ -29,8 +29,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig
-
-NO_TRACK = -1  # track id of a lane without identity
+from lanelab.openlane.read import NO_TRACK
 
 
 @dataclass(frozen=True)

@@ -4,8 +4,9 @@ The layout is the one of the official evaluator (OpenDriveLab/OpenLane,
 ``eval/LANE_evaluation/lane3d/eval_3D_lane.py``):
 
 - a ground-truth file has ``file_path``, ``extrinsic`` (4, 4), ``intrinsic`` (3, 3) and
-  ``lane_lines``, each lane with ``xyz`` (3, N) in the camera frame, ``visibility`` (N,) and
-  ``category``;
+  ``lane_lines``, each lane with ``xyz`` (3, N) in the camera frame, ``visibility`` (N,),
+  ``category`` and, not always, ``track_id``; the reader converts the lanes into the
+  evaluator's ground frame (:mod:`lanelab.openlane.ground_frame`);
 - a prediction file has ``file_path`` and ``lane_lines``, each lane with ``xyz`` (N, 3) in the
   evaluator's ground frame (x right, y forward, z up) and ``category``; as in the official
   evaluator, N x 2 lanes get z = 0 and columns past the third are ignored. Any other key
@@ -19,33 +20,16 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from lanelab.metrics.json_files import (
-    LaneFileError,
-    load_json_object,
-    numeric_array,
-    require,
-    require_list,
-)
-
-# OpenLane stores lanes in the Waymo camera axes (x forward, y left, z up); this matrix maps
-# OpenCV camera axes (x right, y down, z forward) to them, and its transpose maps back.
-_WAYMO_FROM_OPENCV = np.array(
-    [[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
-)
-_OPENCV_FROM_WAYMO = _WAYMO_FROM_OPENCV.T.copy()
-# Vehicle axes (x forward, y left, z up) from ground axes (x right, y forward, z up).
-_VEHICLE_FROM_GROUND = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-# Ground-style camera axes (x right, y forward, z up) from OpenCV camera axes.
-_GROUND_FROM_OPENCV = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-
+from lanelab.json_files import LaneFileError, load_json_object, numeric_array, require, require_list
+from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_camera
 
 # The error every OpenLane reader raises (the name users of evaluate() catch).
 OpenLaneFormatError = LaneFileError
+NO_TRACK = -1  # track id of a lane without identity (an OpenLane lane without ``track_id``)
 
 
 @dataclass(frozen=True)
@@ -53,13 +37,16 @@ class GroundTruthFrame:
     """One ground-truth frame, lanes already in the evaluator's ground frame.
 
     lanes[i]: (N_i, 3) points (x right, y forward, z up), visibility[i]: (N_i,),
-    categories[i]: OpenLane category id.
+    categories[i]: OpenLane category id. K: (3, 3) intrinsics; T_ground_cam: (4, 4) the
+    OpenCV camera in the ground frame (:func:`~lanelab.openlane.ground_frame.ground_from_camera`).
     """
 
     file_path: str
     lanes: list[np.ndarray]
     visibility: list[np.ndarray]
     categories: list[int]
+    K: np.ndarray
+    T_ground_cam: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -71,32 +58,6 @@ class PredictionFrame:
     categories: list[int]
 
 
-def ground_from_camera(extrinsic: np.ndarray) -> np.ndarray:
-    """The official evaluator's ground-from-camera transform (4, 4) for a GT extrinsic (4, 4).
-
-    The extrinsic maps Waymo camera axes into the vehicle frame. The evaluator re-expresses
-    its rotation to map OpenCV camera axes into ground axes (x right, y forward, z up), and
-    keeps only the camera height of its translation: the ground frame lies under the camera,
-    not under the vehicle origin (official ``cam_extrinsics[0:2, 3] = 0``).
-    """
-    T = np.array(extrinsic, dtype=np.float64)
-    R = T[:3, :3]
-    # Signed permutation matrices: these products only move and negate entries, exactly.
-    T[:3, :3] = _VEHICLE_FROM_GROUND.T @ R @ _VEHICLE_FROM_GROUND @ _GROUND_FROM_OPENCV
-    T[0:2, 3] = 0.0
-    return T
-
-
-def camera_lane_to_ground(xyz: np.ndarray, ground_T_camera: np.ndarray) -> np.ndarray:
-    """Lane points (3, N) in Waymo camera axes -> (N, 3) in the ground frame.
-
-    Computed as the official ``E @ (inv(C) @ [xyz; 1])`` with the same (4, 4) @ (4, N)
-    products, so that the floating-point result is the same.
-    """
-    homogeneous = np.vstack([xyz, np.ones((1, xyz.shape[1]))])
-    return np.matmul(ground_T_camera, np.matmul(_OPENCV_FROM_WAYMO, homogeneous))[0:3, :].T
-
-
 def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
     """Read and validate one ground-truth JSON and convert its lanes to the ground frame."""
     data = load_json_object(path)
@@ -104,7 +65,7 @@ def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
     if not isinstance(file_path, str):
         raise OpenLaneFormatError(path, "'file_path' must be a string")
     extrinsic = numeric_array(require(data, "extrinsic", path), (4, 4), "'extrinsic'", path)
-    numeric_array(require(data, "intrinsic", path), (3, 3), "'intrinsic'", path)
+    K = numeric_array(require(data, "intrinsic", path), (3, 3), "'intrinsic'", path)
     T = ground_from_camera(extrinsic)
 
     lanes, visibility, categories = [], [], []
@@ -121,7 +82,7 @@ def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
         lanes.append(camera_lane_to_ground(xyz, T))
         visibility.append(vis)
         categories.append(_category(lane, path, where, strict=True))
-    return GroundTruthFrame(file_path, lanes, visibility, categories)
+    return GroundTruthFrame(file_path, lanes, visibility, categories, K, T)
 
 
 def read_prediction(path: str | os.PathLike[str]) -> PredictionFrame:
@@ -141,19 +102,6 @@ def read_prediction(path: str | os.PathLike[str]) -> PredictionFrame:
         lanes.append(xyz)
         categories.append(_category(lane, path, where, strict=False))
     return PredictionFrame(file_path, lanes, categories)
-
-
-def read_test_list(path: str | os.PathLike[str]) -> list[str]:
-    """Relative JSON paths named by a test list (one image or JSON path a line).
-
-    As the official evaluator does, every 'jpg' in a line becomes 'json'. Blank lines are
-    skipped (the official one crashes on them).
-    """
-    try:
-        text = Path(path).read_text()
-    except OSError as error:
-        raise OpenLaneFormatError(path, f"cannot read the test list ({error.strerror})") from None
-    return [line.replace("jpg", "json").lstrip("/") for line in text.splitlines() if line.strip()]
 
 
 def _category(lane: dict[str, Any], path: str | os.PathLike[str], where: str, strict: bool) -> int:

@@ -1,9 +1,10 @@
-"""OpenLane's scenario lists, whatever their file names and leading folders."""
+"""OpenLane's test lists, and its scenario lists whatever their file names and leading folders."""
 
 import pytest
 
-from lanelab.evaluation.scenario_lists import case_name, frame_key, read_scenario_lists, scenarios_of
-from lanelab.metrics.json_files import LaneFileError
+from lanelab.json_files import LaneFileError
+from lanelab.metrics.scenarios import scenarios_of
+from lanelab.openlane.lists import case_name, frame_key, read_scenario_lists, read_test_list, write_test_list
 
 
 @pytest.mark.parametrize("name", ["1000_curve.txt", "curve.txt", "curve_case.txt", "lists/300_curve_case.txt"])
@@ -35,3 +36,9 @@ def test_lists_are_read_in_table_order_and_match_test_list_ids(tmp_path):
 def test_a_folder_without_lists_is_named(tmp_path):
     with pytest.raises(LaneFileError, match=f"{tmp_path}: no scenario lists"):
         read_scenario_lists(tmp_path)
+
+
+def test_a_written_test_list_reads_back_as_json_paths(tmp_path):
+    write_test_list(tmp_path / "test_list.txt", ["clip/1.jpg", "clip/2.jpg"])
+    assert (tmp_path / "test_list.txt").read_text() == "clip/1.jpg\nclip/2.jpg\n"
+    assert read_test_list(tmp_path / "test_list.txt") == ["clip/1.json", "clip/2.json"]

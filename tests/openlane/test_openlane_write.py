@@ -1,4 +1,4 @@
-"""OpenLane JSON files of lanes in the lane frame read back, through lanelab.metrics.openlane_io,
+"""OpenLane JSON files of lanes in the lane frame read back, through lanelab.openlane.read,
 as the same lanes, for a camera that is pitched, turned and away from the lane-frame origin."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from lanelab.lightning import Lane
-from lanelab.lightning.openlane_writer import ground_truth_json, prediction_json
 from lanelab.metrics import evaluate
-from lanelab.metrics.openlane_io import read_ground_truth, read_prediction
+from lanelab.openlane.read import read_ground_truth, read_prediction
+from lanelab.openlane.write import ground_truth_json, prediction_json
 
 K = np.array([[1000.0, 0.0, 480.0], [0.0, 1000.0, 360.0], [0.0, 0.0, 1.0]])
 
@@ -64,3 +64,10 @@ def test_predictions_equal_to_the_ground_truth_score_one(tmp_path: Path):
     assert prediction.categories == [2, 1, 21]
     scores = evaluate(tmp_path / "gt", tmp_path / "pred", tmp_path / "list.txt")
     assert scores["f1"] == 1.0 and scores["category_accuracy"] == 1.0 and scores["x_error_close"] < 1e-9
+
+
+def test_scores_stay_with_their_lanes_when_a_lane_is_left_out():
+    hidden = Lane(lanes()[0].points, np.zeros(40), 2, 0.8)
+    content = prediction_json("clip/1.jpg", [hidden, *lanes()[1:]], scores=[0.8, 0.7, 0.6])
+    assert [(line["category"], line["score"]) for line in content["lane_lines"]] == [(1, 0.7), (21, 0.6)]
+    assert "score" not in prediction_json("clip/1.jpg", lanes())["lane_lines"][0]

@@ -1,4 +1,8 @@
-"""OpenLane's scenario lists: which frames make the Up & Down, Curve, ... test cases.
+"""OpenLane's lists of frames: test lists and the scenario lists of its six test cases.
+
+A test list names one frame a line, by the image (or JSON) path relative to the ground-truth
+and prediction folders; :func:`read_test_list` reads it as the official evaluator does and
+:func:`write_test_list` writes one.
 
 The OpenLane download lists the frames of each of its six cases in a text file of image
 paths, one a line, named by the case with a prefix or suffix that depends on the subset:
@@ -16,14 +20,42 @@ from __future__ import annotations
 import os
 import re
 from pathlib import Path, PurePosixPath
-from typing import Iterable, Mapping
+from typing import Iterable
 
-from lanelab.metrics.json_files import LaneFileError
-from lanelab.metrics.openlane_io import read_test_list
-from lanelab.metrics.scenarios import OPENLANE_SCENARIOS, Scenario, list_scenarios
+from lanelab.atomic_file import atomic_output
+from lanelab.json_files import LaneFileError
+
+# OpenLane's scenario lists -> column labels, in the order of SparseLaneSTP's Table 4.
+OPENLANE_SCENARIOS = {
+    "up_down": "Up & Down",
+    "curve": "Curve",
+    "extreme_weather": "Extreme Weather",
+    "night": "Night",
+    "intersection": "Intersection",
+    "merge_split": "Merge & Split",
+}
 
 # "1000_curve", "curve", "curve_case" -> "curve"
 _CASE_NAME = re.compile(r"^(?:\d+_)?(?P<name>.+?)(?:_case)?$")
+
+
+def read_test_list(path: str | os.PathLike[str]) -> list[str]:
+    """Relative JSON paths named by a test list (one image or JSON path a line).
+
+    As the official evaluator does, every 'jpg' in a line becomes 'json'. Blank lines are
+    skipped (the official one crashes on them).
+    """
+    try:
+        text = Path(path).read_text()
+    except OSError as error:
+        raise LaneFileError(path, f"cannot read the test list ({error.strerror})") from None
+    return [line.replace("jpg", "json").lstrip("/") for line in text.splitlines() if line.strip()]
+
+
+def write_test_list(path: str | os.PathLike[str], file_paths: Iterable[str]) -> None:
+    """Write a test list of these frames (their ``file_path``, one a line), atomically."""
+    with atomic_output(path) as tmp:
+        tmp.write_text("".join(f"{file_path}\n" for file_path in file_paths))
 
 
 def case_name(list_file: str | os.PathLike[str]) -> str:
@@ -50,12 +82,3 @@ def read_scenario_lists(directory: str | os.PathLike[str]) -> dict[str, frozense
     lists = {case_name(f): frozenset(frame_key(line) for line in read_test_list(f)) for f in files}
     order = list(OPENLANE_SCENARIOS) + sorted(set(lists) - set(OPENLANE_SCENARIOS))
     return {name: lists[name] for name in order if name in lists}
-
-
-def scenarios_of(lists: Mapping[str, frozenset[str]], frame_ids: Iterable[str]) -> list[Scenario]:
-    """The scenarios of the lists over frame_ids (test-list ids, as evaluate_frames names
-    frames): each holds the ids whose frame_key its list names; labelled as in the papers."""
-    frame_ids = list(frame_ids)
-    return list_scenarios({
-        name: [frame for frame in frame_ids if frame_key(frame) in keys] for name, keys in lists.items()
-    })

@@ -1,6 +1,7 @@
 """Reading lane JSON files with errors that name the file and the problem.
 
-Shared by the OpenLane and ONCE-3DLanes readers: a malformed file raises
+Shared by the readers of OpenLane (:mod:`lanelab.openlane`, the OpenLane adapter's annotation
+reader) and of ONCE-3DLanes (:mod:`lanelab.metrics.once`): a malformed file raises
 :class:`LaneFileError` ("<path>: <problem>"), never a traceback from deep inside numpy.
 """
 
