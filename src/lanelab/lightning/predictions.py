@@ -18,7 +18,7 @@ import torch
 from torch import Tensor
 
 from lanelab.metrics.openlane_metric import LaneBatch
-from lanelab.models.heads import BACKGROUND_INDEX, index_to_category
+from lanelab.models.categories import BACKGROUND_INDEX, index_to_category
 from lanelab.models.lane_nms import suppress_duplicates
 from lanelab.models.sparselanestp import SparseLaneSTP
 

@@ -4,14 +4,14 @@ from lanelab.models.backbone import ResNet
 from lanelab.models.decoder import DecoderLayer, LaneDecoder
 from lanelab.models.deformable_attention import DeformableCrossAttention
 from lanelab.models.fpn import FPN
-from lanelab.models.heads import (
+from lanelab.models.categories import (
     BACKGROUND_INDEX,
     LANE_CATEGORY_IDS,
     NUM_LANE_CATEGORIES,
-    LaneHead,
     category_to_index,
     index_to_category,
 )
+from lanelab.models.heads import LaneHead
 from lanelab.models.losses import SparseLaneSTPLoss
 from lanelab.models.matcher import HungarianMatcher
 from lanelab.models.memory_queue import MemoryQueue, MemoryState
