@@ -103,7 +103,7 @@ def data_module(store: Path, sampler: str, **overrides) -> ClipDataModule:
     settings = {
         "store": str(store), "splits": {"train": "train", "val": "train", "test": "train", "predict": "train"},
         "image_size": [HEIGHT, WIDTH], "y_grid": {"start": 3.0, "stop": 60.0, "num": 20},
-        "control_points": {"num": 6, "y_start": 3.0, "y_end": 60.0}, "max_lanes": 4, "augment": None,
+        "max_lanes": 4, "augment": None,
         "num_workers": 0, **overrides,
     }  # fmt: skip
     cfg.data = OmegaConf.merge(cfg.data, settings)
