@@ -83,7 +83,7 @@ TINY_MODEL = [
     "model.net.query_convs=1", "model.net.mask_dim=8", "model.net.num_layers=2", "model.net.ffn_dim=64",
     "model.net.dropout=0.0", "model.net.dca_levels=2", "model.net.dca_points=2", "model.net.tca_neighbors=4",
     "model.net.num_memory_lines=2", "model.net.x_range=[-10.0,10.0]", "model.net.anchor_span=5.25", "model.net.y_range=[3.0,60.0]",
-    "model.net.z_range=[-2.0,2.0]", "model.num_pictures=2",
+    "model.net.z_range=[-2.0,2.0]", "model.pictures.num_frames=2",
 ]  # fmt: skip
 
 
