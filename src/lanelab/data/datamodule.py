@@ -40,9 +40,9 @@ class ClipDataModule(pl.LightningDataModule):
     "test", "predict" -> "train" | "val" | "test"; a missing or null stage has no loader).
     image_size: (H, W) of the model input; crop: (top, left, height, width) source pixels cut
     out before resizing, or None. num_frames: F per sample. y_grid: {start, stop, num} of the
-    resampled lanes. max_lanes: lanes per sample after padding. mean / std: image normalisation. augment:
-    training-only photometric augmentation, or None. batch_size: samples (streams) per rank and
-    step. Defaults live in conf/data/clips.yaml.
+    resampled lanes. max_lanes: lanes per sample after padding. mean / std: image
+    normalisation. augment: training-only photometric augmentation, or None. batch_size:
+    samples (streams) per rank and step. Defaults live in conf/data/clips.yaml.
     """
 
     def __init__(

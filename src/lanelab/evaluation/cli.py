@@ -63,7 +63,8 @@ def run(cfg: EvalConfig) -> list[Path]:
         from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here
 
         options = {"split": cfg.split, "accelerator": cfg.accelerator, "num_pictures": cfg.pictures.num_frames,
-                   "picture_height": cfg.pictures.height, "blind_prior": cfg.blind_prior, "prior_store": cfg.prior_store}  # fmt: skip
+                   "picture_height": cfg.pictures.height, "blind_prior": cfg.blind_prior,
+                   "prior_store": cfg.prior_store}  # fmt: skip
         evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, **options)
         written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
         return [path for path in written if path.exists()]  # no pictures when num_frames=0

@@ -63,4 +63,5 @@ class SparseLaneSTPCriterion(nn.Module):
             outputs["masks"][scored], targets, *camera, tuple(batch["images"].shape[-2:]), losses["matches"]
         )
         terms = {term: losses[term] for term, weight in self.detection.weights.items() if weight}
-        return {"total": losses["total"] + masks["total"], **terms, "mask_dice": masks["dice"], "mask_bce": masks["bce"]}
+        total = losses["total"] + masks["total"]
+        return {"total": total, **terms, "mask_dice": masks["dice"], "mask_bce": masks["bce"]}
