@@ -38,7 +38,7 @@ import cv2
 import torch
 
 from lanelab.atomic_file import atomic_output
-from lanelab.demo import best_checkpoint, prepare_stores
+from lanelab.demo import best_checkpoint, heldout_options, prepare_stores
 from lanelab.evaluation.report import REFERENCE_KEY
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
@@ -106,13 +106,14 @@ def run_one(model: str, seed: int, stores: tuple[Path, Path], args: argparse.Nam
     """Train one model with one seed, read its curves, score its checkpoint on the held-out store."""
     run = args.out / model / f"seed{seed}"
     began = time.monotonic()
-    fit = train(load_train_config([
+    cfg = load_train_config([
         "experiment=demo", f"model={model}", f"seed={seed}", f"data.store={stores[0]}", f"paths.output_dir={run}",
         f"trainer.max_steps={args.max_steps}", f"trainer.max_time={args.max_time}", "trainer.max_epochs=-1",
         f"trainer.val_check_interval={args.val_every}", "trainer.check_val_every_n_epoch=null", *overrides,
-    ]))  # fmt: skip
+    ])  # fmt: skip
+    fit = train(cfg)
     seconds = time.monotonic() - began
-    report = evaluate_checkpoint(best_checkpoint(run), stores[1], run / "heldout", num_pictures=4)
+    report = evaluate_checkpoint(best_checkpoint(run), stores[1], run / "heldout", **heldout_options(cfg))
     curves = read_curves(run / "csv" / "metrics.csv")
     prior = report.get(REFERENCE_KEY, {}).get("overall")
     return {

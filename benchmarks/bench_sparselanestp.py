@@ -32,7 +32,7 @@ from pathlib import Path
 import torch
 
 from lanelab.geometry import make_transform
-from lanelab.models.heads import NUM_LANE_CATEGORIES
+from lanelab.models.categories import NUM_LANE_CATEGORIES
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 _COMMON = dict(

@@ -58,8 +58,7 @@ def main(argv: list[str] | None = None) -> None:
         steps[model] = int(fit["train/steps"])
         _step(start, f"evaluating {model} on the held-out drives (lanelab-eval checkpoint=... store=...)")
         reports[model] = evaluate_checkpoint(best_checkpoint(run / "train"), test_store, run / "heldout",
-                                             num_pictures=base.evaluation.num_pictures,
-                                             picture_height=base.evaluation.picture_height)  # fmt: skip
+                                             **heldout_options(base))  # fmt: skip
 
     table = comparison(reports, steps, demo)
     with atomic_output(out / COMPARISON_MD) as tmp:
@@ -118,6 +117,17 @@ def _scenario_f1(report: dict[str, Any], group: str, scenario: str) -> float | N
 
 def _number(value: float | None, scale: float, digits: int) -> str:
     return "–" if value is None else f"{scale * value:.{digits}f}"  # None: no pair had a value
+
+
+def heldout_options(cfg: DictConfig) -> dict[str, Any]:
+    """evaluate_checkpoint's options from a demo run's config: its predict split (the held-out
+    store is all test split), its trainer's accelerator, its evaluation's pictures and blind prior."""
+    evaluation = cfg.evaluation
+    return {
+        "split": cfg.data.splits.predict, "accelerator": cfg.trainer.accelerator,
+        "num_pictures": evaluation.num_pictures, "picture_height": evaluation.picture_height,
+        "blind_prior": evaluation.blind_prior, "prior_store": evaluation.prior_store,
+    }  # fmt: skip
 
 
 def best_checkpoint(run: Path) -> Path:

@@ -31,7 +31,7 @@ def data_module(store: Path, sampler: str, **overrides) -> ClipDataModule:
 
 
 def check_batch(batch: dict, batch_size: int, num_frames: int, dm: ClipDataModule) -> None:
-    B, F, S, L, M = batch_size, num_frames, len(dm.targets.y), dm.max_lanes, dm.targets.num_control_points
+    B, F, S, L = batch_size, num_frames, len(dm.targets.y), dm.max_lanes
     expected = {
         "images": ((B, F, 3, 32, 40), torch.float32),
         "K": ((B, F, 3, 3), torch.float32),
@@ -47,7 +47,6 @@ def check_batch(batch: dict, batch_size: int, num_frames: int, dm: ClipDataModul
         "gt_x": ((B, L, S), torch.float32),
         "gt_z": ((B, L, S), torch.float32),
         "gt_vis": ((B, L, S), torch.float32),
-        "gt_ctrl": ((B, L, M, 4), torch.float32),
         "gt_category": ((B, L), torch.int64),
         "gt_track_id": ((B, L), torch.int64),
         "gt_mask": ((B, L), torch.bool),

@@ -16,7 +16,7 @@ from lanelab.data.transforms import ResizeCrop
 from lanelab.geometry import project_lane_points
 
 MEAN, STD = (0.5, 0.4, 0.3), (0.2, 0.25, 0.3)
-TARGETS = LaneTargets(np.linspace(3.0, 63.0, 31), 6, (3.0, 63.0))
+TARGETS = LaneTargets(np.linspace(3.0, 63.0, 31))
 NO_RESIZE = ResizeCrop(HEIGHT, WIDTH)
 
 
@@ -70,7 +70,7 @@ def test_sample_layout_and_ground_truth(tmp_path):
     assert sample["images"].shape == (4, 3, HEIGHT, WIDTH) and sample["images"].dtype == torch.float32
     assert sample["K"].shape == (4, 3, 3) and sample["T_world_lane"].shape == (4, 4, 4)
     assert sample["labeled"].tolist() == [False, True, False, True]
-    assert sample["gt_x"].shape == (2, 31) and sample["gt_ctrl"].shape == (2, 6, 4)
+    assert sample["gt_x"].shape == (2, 31)
     # Lanes at x = -/+1.75 m from y = 0 to 60 m: visible at the 29 grid y 3, 5, ..., 59.
     torch.testing.assert_close(sample["gt_x"][:, 0], torch.tensor([-1.75, 1.75]))
     assert sample["gt_vis"].sum(1).tolist() == [29.0, 29.0]
@@ -140,7 +140,7 @@ def test_collate_stacks_and_pads_lanes(tmp_path):
     batch = collate_samples([dataset[2], dataset[3]], max_lanes=5)  # 2 lanes, then none
     assert batch["images"].shape == (2, 4, 3, HEIGHT, WIDTH)
     assert batch["valid"].shape == (2, 4) and batch["reset"].shape == (2,)
-    assert batch["gt_x"].shape == (2, 5, 31) and batch["gt_ctrl"].shape == (2, 5, 6, 4)
+    assert batch["gt_x"].shape == (2, 5, 31)
     assert batch["gt_mask"].tolist() == [[True, True, False, False, False], [False] * 5]
     assert batch["gt_category"][0].tolist() == [2, 2, 0, 0, 0]
     assert batch["clip_id"] == ["clip00", "clip00"] and len(batch["tags"]) == 2
@@ -157,7 +157,6 @@ def test_a_flipped_sample_is_the_mirror_image_with_its_lanes_and_cameras_mirrore
     plain, mirrored = (dataset[SampleKey(3, (1, 0), True, False, flip)] for flip in (False, True))
     torch.testing.assert_close(mirrored["images"], plain["images"].flip(-1))
     torch.testing.assert_close(mirrored["gt_x"], -plain["gt_x"])
-    torch.testing.assert_close(mirrored["gt_ctrl"][..., 0], -plain["gt_ctrl"][..., 0])
     point = torch.stack([plain["gt_x"][0, 5], plain["gt_y"][5], plain["gt_z"][0, 5]]).double()[None]
     uv, _, _ = project_lane_points(point, plain["K"][-1].double(), plain["T_lane_cam"][-1].double())
     flipped = point * torch.tensor([-1.0, 1.0, 1.0], dtype=torch.float64)

@@ -14,6 +14,20 @@ from lanelab.data.frame_index import FrameIndex, SampleKey
 from lanelab.data.samplers import StreamSampler, WindowSampler, resolve_rank
 
 CLIP_LENGTHS = [5, 12, 3, 9, 1, 7, 4]  # 41 frames, uneven on purpose (a one-frame clip too)
+# The samplers' training settings (conf/sampler/*.yaml has them; window None: as many frames
+# back as the sample needs), which a test changes where it says so; one process.
+WINDOW = {"history": "nearest", "window": None, "stride": 1, "targets": "labeled", "shuffle": True, "seed": 0,
+          "rank": 0, "world_size": 1, "flip": False}  # fmt: skip
+STREAM = {"num_frames": 1, "steps_per_epoch": None, "split_clips": True, "shuffle": True, "seed": 0, "rank": 0,
+          "world_size": 1, "flip": False}  # fmt: skip
+
+
+def window_sampler(index: FrameIndex, batch_size: int, num_frames: int, **options) -> WindowSampler:
+    return WindowSampler(index, batch_size, num_frames, **{**WINDOW, **options})
+
+
+def stream_sampler(index: FrameIndex, batch_size: int, **options) -> StreamSampler:
+    return StreamSampler(index, batch_size, **{**STREAM, **options})
 
 
 def make_index(lengths=CLIP_LENGTHS, label_every=2) -> FrameIndex:
@@ -23,11 +37,11 @@ def make_index(lengths=CLIP_LENGTHS, label_every=2) -> FrameIndex:
     ])
 
 
-def epoch_of(sampler_cls, world_size, epoch=0, **kwargs) -> list[list[list[SampleKey]]]:
+def epoch_of(make_sampler, world_size, epoch=0, **kwargs) -> list[list[list[SampleKey]]]:
     """Per rank, the batches of one epoch (the sampler's keys in steps of batch_size)."""
     ranks = []
     for rank in range(world_size):
-        sampler = sampler_cls(rank=rank, world_size=world_size, **kwargs)
+        sampler = make_sampler(rank=rank, world_size=world_size, **kwargs)
         sampler.set_epoch(epoch)
         keys = list(sampler)
         assert len(keys) == len(sampler) == sampler.num_steps * sampler.batch_size
@@ -45,7 +59,7 @@ def real_frames(ranks) -> Counter:
 @pytest.mark.parametrize("targets", ["labeled", "all"])
 def test_window_covers_every_target_once(world_size, targets):
     index, batch_size = make_index(), 4
-    ranks = epoch_of(WindowSampler, world_size, index=index, batch_size=batch_size, num_frames=3, targets=targets)
+    ranks = epoch_of(window_sampler, world_size, index=index, batch_size=batch_size, num_frames=3, targets=targets)
     expected = np.flatnonzero(index.labeled) if targets == "labeled" else np.arange(len(index))
 
     assert real_frames(ranks) == Counter(expected.tolist())
@@ -59,14 +73,14 @@ def test_window_covers_every_target_once(world_size, targets):
 
 def test_window_history_nearest_is_bi2lane():
     # Bi²Lane: a window of 5 past frames, the 3 nearest used.
-    sampler = WindowSampler(make_index(), 2, 4, history="nearest", window=5, rank=0, world_size=1)
+    sampler = window_sampler(make_index(), 2, 4, history="nearest", window=5)
     assert {key.offsets for key in sampler} == {(3, 2, 1, 0)}
-    strided = WindowSampler(make_index(), 2, 3, history="nearest", stride=2, rank=0, world_size=1)
+    strided = window_sampler(make_index(), 2, 3, history="nearest", stride=2)
     assert {key.offsets for key in strided} == {(4, 2, 0)}
 
 
 def test_window_history_random_draws_distinct_past_frames_from_the_window():
-    sampler = WindowSampler(make_index(), 4, 3, history="random", window=5, rank=0, world_size=1)
+    sampler = window_sampler(make_index(), 4, 3, history="random", window=5)
     seen = set()
     for epoch in range(3):
         sampler.set_epoch(epoch)
@@ -80,16 +94,16 @@ def test_window_history_random_draws_distinct_past_frames_from_the_window():
 
 def test_window_too_small_for_the_frames_is_refused():
     with pytest.raises(ValueError, match="needs 3"):
-        WindowSampler(make_index(), 2, 4, window=2, rank=0, world_size=1)
+        window_sampler(make_index(), 2, 4, window=2)
 
 
-@pytest.mark.parametrize("sampler_cls, kwargs", [
-    (WindowSampler, {"num_frames": 3, "history": "random", "window": 4}),
-    (StreamSampler, {}),
+@pytest.mark.parametrize("make_sampler, kwargs", [
+    (window_sampler, {"num_frames": 3, "history": "random", "window": 4}),
+    (stream_sampler, {}),
 ])
-def test_deterministic_per_seed_and_epoch(sampler_cls, kwargs):
+def test_deterministic_per_seed_and_epoch(make_sampler, kwargs):
     def plan(seed, epoch):
-        return epoch_of(sampler_cls, 2, epoch, index=make_index(), batch_size=3, seed=seed, **kwargs)
+        return epoch_of(make_sampler, 2, epoch, index=make_index(), batch_size=3, seed=seed, **kwargs)
 
     assert plan(0, 1) == plan(0, 1)
     assert plan(0, 1) != plan(0, 2)
@@ -98,7 +112,7 @@ def test_deterministic_per_seed_and_epoch(sampler_cls, kwargs):
 
 def test_eval_window_keeps_index_order():
     index = make_index()
-    ranks = epoch_of(WindowSampler, 2, index=index, batch_size=2, num_frames=2, targets="all", shuffle=False)
+    ranks = epoch_of(window_sampler, 2, index=index, batch_size=2, num_frames=2, targets="all", shuffle=False)
     interleaved = [key.frame for step in zip(*ranks) for batch in step for key in batch if not key.padding]
     assert interleaved == list(range(len(index)))
 
@@ -129,7 +143,7 @@ def check_streams(index: FrameIndex, ranks, whole_clips: bool) -> None:
 @pytest.mark.parametrize("split_clips", [True, False])
 def test_stream_covers_every_frame_once_in_order(world_size, split_clips):
     index, batch_size = make_index(), 2
-    ranks = epoch_of(StreamSampler, world_size, index=index, batch_size=batch_size, split_clips=split_clips)
+    ranks = epoch_of(stream_sampler, world_size, index=index, batch_size=batch_size, split_clips=split_clips)
 
     assert real_frames(ranks) == Counter(range(len(index)))
     assert len({len(batches) for batches in ranks}) == 1
@@ -146,7 +160,7 @@ def test_stream_length_is_fixed_across_epochs():
     index = make_index()
     lengths = set()
     for split_clips in (True, False):
-        sampler = StreamSampler(index, 2, split_clips=split_clips, rank=0, world_size=3)
+        sampler = stream_sampler(index, 2, split_clips=split_clips, world_size=3)
         for epoch in range(4):
             sampler.set_epoch(epoch)
             lengths.add((split_clips, len(list(sampler)), len(sampler)))
@@ -158,7 +172,7 @@ def test_stream_epochs_of_any_length_continue_the_walk():
     index, world_size, steps = make_index(), 2, 4
     frames, total_steps = Counter(), 0
     for epoch in range(11):  # 44 steps = 4 passes
-        ranks = epoch_of(StreamSampler, world_size, epoch, index=index, batch_size=2, steps_per_epoch=steps)
+        ranks = epoch_of(stream_sampler, world_size, epoch, index=index, batch_size=2, steps_per_epoch=steps)
         assert all(len(batches) == steps for batches in ranks)
         assert all(key.reset for batches in ranks for key in batches[0])  # memory reset per epoch
         frames += real_frames(ranks)
@@ -168,7 +182,7 @@ def test_stream_epochs_of_any_length_continue_the_walk():
 
 def test_stream_with_windows_and_more_streams_than_clips():
     index = make_index([3, 2])
-    ranks = epoch_of(StreamSampler, 2, index=index, batch_size=2, num_frames=2, split_clips=False, shuffle=False)
+    ranks = epoch_of(stream_sampler, 2, index=index, batch_size=2, num_frames=2, split_clips=False, shuffle=False)
     assert real_frames(ranks) == Counter(range(5))
     assert all(key.offsets == (1, 0) for batches in ranks for batch in batches for key in batch)
     check_streams(index, ranks, whole_clips=True)
@@ -188,13 +202,13 @@ def test_flips_are_drawn_per_window_and_per_stream_piece():
     whole (the memory never sees both sides of one drive), and only where a piece starts does the
     choice change. Without it nothing is mirrored."""
     index = make_index(CLIP_LENGTHS * 20)
-    (windows,) = epoch_of(WindowSampler, 1, index=index, batch_size=4, num_frames=2, flip=True)
+    (windows,) = epoch_of(window_sampler, 1, index=index, batch_size=4, num_frames=2, flip=True)
     flips = [key.flip for batch in windows for key in batch]
     assert 0.35 < np.mean(flips) < 0.65
-    (steps,) = epoch_of(StreamSampler, 1, index=index, batch_size=4, flip=True)
+    (steps,) = epoch_of(stream_sampler, 1, index=index, batch_size=4, flip=True)
     streams = list(zip(*steps))
     changes = [(b.flip != a.flip) for stream in streams for a, b in zip(stream, stream[1:]) if not b.padding]
     starts = [b.reset for stream in streams for a, b in zip(stream, stream[1:]) if not b.padding]
     assert any(changes) and all(start for change, start in zip(changes, starts) if change)
-    (plain,) = epoch_of(StreamSampler, 1, index=index, batch_size=4)
+    (plain,) = epoch_of(stream_sampler, 1, index=index, batch_size=4)
     assert not any(key.flip for batch in plain for key in batch)

@@ -1,14 +1,12 @@
-"""Lane targets: resampling at fixed y (hand cases) and Catmull-Rom control points."""
+"""Lane targets: resampling at fixed y (hand cases), which lanes are kept."""
 
 from __future__ import annotations
 
 from types import SimpleNamespace
 
 import numpy as np
-import torch
 
 from lanelab.data.targets import LANE_KEYS, LaneTargets, resample_lane
-from lanelab.geometry import curve_arguments, evaluate
 
 
 def lane(x, y, z, visibility=None, track_id=7, category=2):
@@ -45,7 +43,7 @@ def test_visibility_is_interpolated_then_thresholded():
 
 
 def test_targets_shapes_and_dropped_lanes():
-    targets = LaneTargets(np.linspace(3.0, 103.0, 101), 10, (3.0, 103.0))
+    targets = LaneTargets(np.linspace(3.0, 103.0, 101))
     ys = np.arange(0.0, 80.0, 2.0)
     kept = lane(1.75, ys, 0.0, track_id=3, category=8)
     lanes = [
@@ -57,37 +55,10 @@ def test_targets_shapes_and_dropped_lanes():
     out = targets(lanes)
     assert set(out) == set(LANE_KEYS)
     assert out["gt_x"].shape == out["gt_z"].shape == out["gt_vis"].shape == (1, 101)
-    assert out["gt_ctrl"].shape == (1, 10, 4)
-    assert out["gt_x"].dtype == out["gt_ctrl"].dtype == np.float32
+    assert out["gt_x"].dtype == np.float32
     assert out["gt_category"].tolist() == [8] and out["gt_track_id"].tolist() == [3]
     assert out["gt_category"].dtype == out["gt_track_id"].dtype == np.int64
 
     empty = targets([])
-    assert empty["gt_x"].shape == (0, 101) and empty["gt_ctrl"].shape == (0, 10, 4)
+    assert empty["gt_x"].shape == (0, 101)
 
-
-def test_control_points_reproduce_a_curved_climbing_lane_within_centimetres():
-    ys = np.arange(0.0, 110.0, 1.0)
-    true_x = ys**2 / 600.0 - 1.75  # a curve of radius 300 m, 17 m sideways at 100 m
-    true_z = 0.01 * ys + 0.3 * np.cos(ys / 30.0)
-    curved = lane(true_x, ys, true_z)
-    targets = LaneTargets(np.linspace(3.0, 103.0, 100), 10, (3.0, 103.0))
-    ctrl = torch.from_numpy(targets([curved])["gt_ctrl"][0]).double()  # (M, 4) x, y, z, visibility
-
-    y_check = torch.linspace(3.0, 103.0, 501, dtype=torch.float64)
-    curve = evaluate(ctrl, curve_arguments(y_check, 3.0, 103.0))  # (S, 4)
-    np.testing.assert_allclose(curve[:, 1], y_check, atol=1e-4)  # y is linear in s
-    np.testing.assert_allclose(curve[:, 0], np.interp(y_check, ys, true_x), atol=0.03)
-    np.testing.assert_allclose(curve[:, 2], np.interp(y_check, ys, true_z), atol=0.03)
-    np.testing.assert_allclose(ctrl[:, 1], np.linspace(3.0, 103.0, 10), atol=1e-5)
-    assert (ctrl[:, 3] == 1).all()
-
-
-def test_control_point_visibility_is_zero_beyond_the_lane():
-    ys = np.arange(0.0, 51.0, 1.0)
-    short = lane(1.0 + 0.01 * ys, ys, 0.0)
-    ctrl = LaneTargets(np.linspace(3.0, 103.0, 100), 11, (3.0, 103.0))([short])["gt_ctrl"][0]
-    np.testing.assert_array_equal(ctrl[:, 3], (ctrl[:, 1] <= 50.0).astype(np.float32))
-    # Within the lane the fit follows it; beyond, the smoothness term continues it straight.
-    inside = ctrl[:, 1] <= 50.0
-    np.testing.assert_allclose(ctrl[inside, 0], 1.0 + 0.01 * ctrl[inside, 1], atol=0.01)

@@ -15,7 +15,7 @@ DDP = ["trainer=ddp_cpu", "trainer.strategy.start_method=spawn"]
 # No pictures: lanelab.lightning.pictures.log_pictures asks trainer.log_dir (a broadcast) on rank
 # zero alone when the logger takes no images, which hangs DDP (reported; remove once fixed).
 COMMON = ["trainer.max_epochs=1", "trainer.limit_train_batches=2", "trainer.limit_val_batches=1",
-          "data.splits.test=train", "test=true", "model.num_pictures=0"]  # fmt: skip
+          "data.splits.test=train", "test=true", "model.pictures.num_frames=0"]  # fmt: skip
 COUNTS = ("num_frames", "gt_lanes", "pred_lanes", "matched", "recall_tp", "precision_tp", "category_correct")
 
 

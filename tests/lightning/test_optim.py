@@ -8,7 +8,7 @@ import pytest
 import torch
 from torch import nn
 
-from lanelab.lightning.optim import parameter_groups, warmup_cosine
+from lanelab.lightning.optim import adamw, parameter_groups, warmup_cosine
 
 
 class Net(nn.Module):
@@ -33,10 +33,17 @@ def test_parameter_groups_apply_the_first_matching_multiplier():
     ]
 
 
+def test_adamw_takes_its_groups_and_settings():
+    optimizer = adamw(Net(), lr=1e-3, weight_decay=0.01, betas=[0.9, 0.99], lr_multipliers={"sampling_offsets": 0.1})
+    assert [group["lr"] for group in optimizer.param_groups] == pytest.approx([1e-4, 1e-3])
+    assert optimizer.defaults["lr"] == 1e-3 and optimizer.defaults["betas"] == (0.9, 0.99)
+    assert all(group["weight_decay"] == 0.01 for group in optimizer.param_groups)
+
+
 def test_warmup_then_cosine_to_the_minimum():
     optimizer = torch.optim.AdamW([{"params": [nn.Parameter(torch.zeros(1))], "lr": 1.0},
-                                   {"params": [nn.Parameter(torch.zeros(1))], "lr": 0.1}])  # fmt: skip
-    scheduler = warmup_cosine(optimizer, warmup_steps=4, total_steps=20, min_factor=0.05)
+                                   {"params": [nn.Parameter(torch.zeros(1))], "lr": 0.1}], lr=1.0)  # fmt: skip
+    scheduler = warmup_cosine(optimizer, 20, warmup_steps=4, min_lr=0.05)
     lrs = []
     for _ in range(25):
         lrs.append([group["lr"] for group in optimizer.param_groups])

@@ -16,11 +16,10 @@ from lightning.pytorch.loggers import CSVLogger
 from tiny_setup import TRAINER, build_store, data_module, model_config
 
 from lanelab.lightning import OpenLaneWriter
-from lanelab.lightning.pictures import HEIGHT
 from lanelab.metrics import evaluate
 
 STEPS = 300  # windowed training, 4 windows of 2 frames a step: 150 passes over the clip
-FAST = ["model.lr=2e-3", "model.warmup_steps=20", "model.min_lr=1e-4"]  # a high lr for a short run
+FAST = ["model.optimizer.lr=2e-3", "model.scheduler.warmup_steps=20", "model.scheduler.min_lr=1e-4"]  # a high lr for a short run
 
 
 @dataclass
@@ -28,6 +27,7 @@ class Run:
     scores: dict[str, float]  # the in-loop metric after training (val/...)
     log_dir: Path
     files: Path  # OpenLaneWriter output of the same frames
+    picture_height: int  # model.pictures.height
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +49,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
 
     writer = OpenLaneWriter(root / "files", write_ground_truth=True)
     pl.Trainer(logger=False, callbacks=[writer], **TRAINER).predict(module, data, return_predictions=False)
-    return Run(scores, Path(trainer.log_dir), root / "files")
+    return Run(scores, Path(trainer.log_dir), root / "files", module.pictures["height"])
 
 
 def test_a_tiny_model_overfits_one_clip(run):
@@ -69,5 +69,5 @@ def test_openlane_files_score_as_the_in_loop_metric(run):
 
 def test_validation_logs_pictures(run):
     pictures = sorted((run.log_dir / "pictures").glob("val_pictures_step*.png"))
-    assert len(pictures) == 2  # model.num_pictures in the tests
-    assert cv2.imread(str(pictures[0])).shape[0] == HEIGHT
+    assert len(pictures) == 2  # model.pictures.num_frames in the tests
+    assert cv2.imread(str(pictures[0])).shape[0] == run.picture_height

@@ -83,7 +83,7 @@ TINY_MODEL = [
     "model.net.query_convs=1", "model.net.mask_dim=8", "model.net.num_layers=2", "model.net.ffn_dim=64",
     "model.net.dropout=0.0", "model.net.dca_levels=2", "model.net.dca_points=2", "model.net.tca_neighbors=4",
     "model.net.num_memory_lines=2", "model.net.x_range=[-10.0,10.0]", "model.net.anchor_span=5.25", "model.net.y_range=[3.0,60.0]",
-    "model.net.z_range=[-2.0,2.0]", "model.num_pictures=2",
+    "model.net.z_range=[-2.0,2.0]", "model.pictures.num_frames=2",
 ]  # fmt: skip
 
 
@@ -103,7 +103,7 @@ def data_module(store: Path, sampler: str, **overrides) -> ClipDataModule:
     settings = {
         "store": str(store), "splits": {"train": "train", "val": "train", "test": "train", "predict": "train"},
         "image_size": [HEIGHT, WIDTH], "y_grid": {"start": 3.0, "stop": 60.0, "num": 20},
-        "control_points": {"num": 6, "y_start": 3.0, "y_end": 60.0}, "max_lanes": 4, "augment": None,
+        "max_lanes": 4, "augment": None,
         "num_workers": 0, **overrides,
     }  # fmt: skip
     cfg.data = OmegaConf.merge(cfg.data, settings)

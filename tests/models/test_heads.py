@@ -3,14 +3,14 @@ import torch
 from torch import nn
 
 from lanelab.geometry import evaluate
-from lanelab.models.heads import (
+from lanelab.models.categories import (
     BACKGROUND_INDEX,
     LANE_CATEGORY_IDS,
     NUM_LANE_CATEGORIES,
-    LaneHead,
     category_to_index,
     index_to_category,
 )
+from lanelab.models.heads import LaneHead
 
 C, M, CLASSES = 16, 6, NUM_LANE_CATEGORIES
 X_RANGE, Y_RANGE, Z_RANGE = (-10.0, 10.0), (3.0, 103.0), (-2.0, 3.0)

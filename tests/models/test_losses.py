@@ -2,9 +2,10 @@ import math
 
 import pytest
 import torch
+from loss_setup import LOSS, build_matcher
 
 from lanelab.geometry import control_point_y, evaluate
-from lanelab.models.heads import BACKGROUND_INDEX, category_to_index
+from lanelab.models.categories import BACKGROUND_INDEX, category_to_index
 from lanelab.models.losses import (
     TERMS,
     SparseLaneSTPLoss,
@@ -14,7 +15,6 @@ from lanelab.models.losses import (
     parallelism_and_surface,
     temporal_consistency,
 )
-from lanelab.models.matcher import HungarianMatcher
 from lanelab.models.memory_queue import MemoryState
 
 M, Y_RANGE = 6, (3.0, 53.0)
@@ -57,7 +57,7 @@ def perfect_outputs(N: int = 6) -> tuple[dict, dict]:
 
 def criterion(**kwargs) -> SparseLaneSTPLoss:
     weights = kwargs.pop("weights", ALL_TERMS)
-    return SparseLaneSTPLoss(HungarianMatcher(), weights, y_range=Y_RANGE, num_control_points=M, **kwargs)
+    return SparseLaneSTPLoss(build_matcher(), weights, y_range=Y_RANGE, num_control_points=M, **{**LOSS, **kwargs})
 
 
 def test_focal_loss_by_hand():

@@ -1,12 +1,11 @@
 import math
 
 import pytest
-
 import torch
+from loss_setup import build_matcher
 
 from lanelab.geometry import control_point_y, evaluate
-from lanelab.models.heads import BACKGROUND_INDEX, LANE_CATEGORY_IDS, category_to_index
-from lanelab.models.matcher import HungarianMatcher
+from lanelab.models.categories import BACKGROUND_INDEX, LANE_CATEGORY_IDS, category_to_index
 
 M, Y_RANGE = 6, (3.0, 53.0)
 GT_Y = torch.linspace(3.0, 53.0, 11)
@@ -51,7 +50,7 @@ def test_a_perfect_prediction_matches_each_lane_to_its_proposal():
     categories = torch.tensor([[1, 2, 20, 21], [7, 8, 0, 0]])
     targets = targets_from(gt_points, gt_mask, categories)
     s = (GT_Y - Y_RANGE[0]) / (Y_RANGE[1] - Y_RANGE[0])
-    matcher = HungarianMatcher(cost_class=1.0, cost_reg=1.0, cost_vis=1.0)
+    matcher = build_matcher(cost_class=1.0, cost_reg=1.0, cost_vis=1.0)
 
     identity = torch.arange(G)
     logits, points = perfect_prediction(gt_points, gt_mask, categories, identity, N)
@@ -75,7 +74,7 @@ def test_pair_costs_by_hand():
     }  # fmt: skip
     curves = torch.tensor([[[[1.5, 0.0, 0.0, 0.8], [2.0, 0.0, 1.0, 0.6], [9.0, 0.0, 9.0, 0.1]]]])  # (1, 1, 3, 4)
     logits = torch.log(torch.tensor([[[0.1, 0.2, 0.5] + [0.2 / 13] * 13]]))  # p(category index 2) = 0.5
-    cost = HungarianMatcher(cost_class=2.0, cost_reg=3.0, cost_vis=5.0, gamma=2.0).cost_matrix(logits, curves, targets)
+    cost = build_matcher(cost_class=2.0, cost_reg=3.0, cost_vis=5.0, gamma=2.0).cost_matrix(logits, curves, targets)
     focal = -(0.5**2) * math.log(0.5)
     reg = (0.5 + (0.0 + 1.0)) / 2  # mean over the two visible samples; the invisible one is ignored
     vis = (0.2 + 0.4 + 0.1) / 3
@@ -98,16 +97,16 @@ def test_matching_on_anchors_pairs_lanes_with_the_nearest_anchors_whatever_the_l
     anchors = torch.tensor([-5.25, -1.75, 1.75, 5.25])
     logits = torch.zeros(1, 4, BACKGROUND_INDEX + 1)
     curves = torch.zeros(1, 4, S, 4)
-    matcher = HungarianMatcher(match_on="anchors", near_range=30.0)
+    matcher = build_matcher(match_on="anchors", near_range=30.0)
     ((pred, gt),) = matcher(logits, curves, targets, anchors)
     assert dict(zip(gt.tolist(), pred.tolist())) == {0: 1, 1: 2, 2: 3}
     cost = matcher.anchor_cost(anchors, targets)
     torch.testing.assert_close(cost[0, 1, 0], torch.tensor(abs(-1.9 + 1.75)))  # near samples only
-    assert HungarianMatcher(match_on="anchors", near_range=200.0).anchor_cost(anchors, targets)[0, :, 0].argmin() == 0
+    assert build_matcher(match_on="anchors", near_range=200.0).anchor_cost(anchors, targets)[0, :, 0].argmin() == 0
     with pytest.raises(ValueError, match="anchor_span"):
         matcher(logits, curves, targets, None)
     with pytest.raises(ValueError, match="match_on"):
-        HungarianMatcher(match_on="nearest")
+        build_matcher(match_on="nearest")
 
 
 def test_a_lane_far_from_every_free_anchor_is_no_lines_target():
@@ -124,12 +123,12 @@ def test_a_lane_far_from_every_free_anchor_is_no_lines_target():
     }  # fmt: skip
     anchors = torch.tensor([-1.75, 1.75, 12.0])
     logits, curves = torch.zeros(1, 3, BACKGROUND_INDEX + 1), torch.zeros(1, 3, S, 4)
-    ((pred, gt),) = HungarianMatcher(match_on="anchors")(logits, curves, targets, anchors)
+    ((pred, gt),) = build_matcher(match_on="anchors")(logits, curves, targets, anchors)
     assert dict(zip(gt.tolist(), pred.tolist())) == {0: 0, 1: 1, 2: 2}  # 5 m from its line
-    ((pred, gt),) = HungarianMatcher(match_on="anchors", max_anchor_distance=2.0)(logits, curves, targets, anchors)
+    ((pred, gt),) = build_matcher(match_on="anchors", max_anchor_distance=2.0)(logits, curves, targets, anchors)
     assert dict(zip(gt.tolist(), pred.tolist())) == {0: 0, 1: 1}
     with pytest.raises(ValueError, match="max_anchor_distance"):  # it would be silently ignored
-        HungarianMatcher(match_on="predictions", max_anchor_distance=2.0)
+        build_matcher(match_on="predictions", max_anchor_distance=2.0)
 
 
 def test_one_to_many_gives_a_lane_every_anchor_near_it_and_a_lone_lane_its_nearest_free_one():
@@ -146,7 +145,7 @@ def test_one_to_many_gives_a_lane_every_anchor_near_it_and_a_lone_lane_its_neare
     }  # fmt: skip
     anchors = torch.tensor([-3.0, -1.0, 1.0, 3.0])
     logits, curves = torch.zeros(1, 4, BACKGROUND_INDEX + 1), torch.zeros(1, 4, S, 4)
-    matcher = HungarianMatcher(match_on="anchors", max_anchor_distance=2.0, positive_distance=1.0)
+    matcher = build_matcher(match_on="anchors", max_anchor_distance=2.0, positive_distance=1.0)
     ((pred, gt),) = matcher(logits, curves, targets, anchors)
     pairs = sorted(zip(pred.tolist(), gt.tolist()))
     assert pairs == [(0, 2), (1, 0), (2, 1), (3, 1)]
@@ -163,7 +162,7 @@ def test_one_to_many_never_gives_a_line_two_lanes_when_lanes_outnumber_lines():
         "gt_category": torch.full((1, 4), 2), "gt_mask": torch.ones(1, 4, dtype=torch.bool),
     }  # fmt: skip
     logits, curves = torch.zeros(1, 2, BACKGROUND_INDEX + 1), torch.zeros(1, 2, S, 4)
-    ((pred, gt),) = HungarianMatcher(match_on="anchors", positive_distance=0.5)(
+    ((pred, gt),) = build_matcher(match_on="anchors", positive_distance=0.5)(
         logits, curves, targets, torch.tensor([-1.0, 1.0])
     )
     assert sorted(zip(pred.tolist(), gt.tolist())) == [(0, 0), (1, 1)]

@@ -3,7 +3,7 @@ import torch
 from torch import nn
 
 from lanelab.geometry import make_transform
-from lanelab.models.heads import NUM_LANE_CATEGORIES
+from lanelab.models.categories import NUM_LANE_CATEGORIES
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 B, F, H, W = 2, 3, 64, 96

@@ -40,10 +40,9 @@ class ClipDataModule(pl.LightningDataModule):
     "test", "predict" -> "train" | "val" | "test"; a missing or null stage has no loader).
     image_size: (H, W) of the model input; crop: (top, left, height, width) source pixels cut
     out before resizing, or None. num_frames: F per sample. y_grid: {start, stop, num} of the
-    resampled lanes; control_points: {num, y_start, y_end} of the Catmull-Rom targets.
-    max_lanes: lanes per sample after padding. mean / std: image normalisation. augment:
-    training-only photometric augmentation, or None. batch_size: samples (streams) per rank and
-    step. Defaults live in conf/data/clips.yaml.
+    resampled lanes. max_lanes: lanes per sample after padding. mean / std: image
+    normalisation. augment: training-only photometric augmentation, or None. batch_size:
+    samples (streams) per rank and step. Defaults live in conf/data/clips.yaml.
     """
 
     def __init__(
@@ -55,7 +54,6 @@ class ClipDataModule(pl.LightningDataModule):
         crop: Sequence[int] | None,
         num_frames: int,
         y_grid: Mapping[str, float],
-        control_points: Mapping[str, float],
         max_lanes: int,
         mean: Sequence[float],
         std: Sequence[float],
@@ -71,11 +69,7 @@ class ClipDataModule(pl.LightningDataModule):
         self.splits = dict(splits)
         self.resize = ResizeCrop(int(image_size[0]), int(image_size[1]), None if crop is None else tuple(crop))
         self.num_frames = num_frames
-        self.targets = LaneTargets(
-            np.linspace(y_grid["start"], y_grid["stop"], int(y_grid["num"])),
-            int(control_points["num"]),
-            (float(control_points["y_start"]), float(control_points["y_end"])),
-        )
+        self.targets = LaneTargets(np.linspace(y_grid["start"], y_grid["stop"], int(y_grid["num"])))
         self.max_lanes = max_lanes
         self.mean, self.std = tuple(mean), tuple(std)
         self.augment = augment

@@ -21,7 +21,6 @@ clip_id             str                         the clip
 tags                dict[str, str]              scenario tags of the current frame
 gt_y                (S,)               float32  the y grid of gt_x / gt_z / gt_vis
 gt_x, gt_z, gt_vis  (L, S)             float32  lanes at gt_y (see :mod:`targets`)
-gt_ctrl             (L, M, 4)          float32  Catmull-Rom control points x, y, z, visibility
 gt_category         (L,)               int64    OpenLane category ids
 gt_track_id         (L,)               int64    lane identity across frames
 ==================  =================  =======  ===============================================
@@ -54,9 +53,7 @@ from lanelab.store.image_codec import decode_image
 
 def mirror_targets(targets: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Lane targets (:class:`LaneTargets` output) of the left-right mirrored frame."""
-    ctrl = targets["gt_ctrl"].copy()
-    ctrl[..., 0] *= -1
-    return {**targets, "gt_x": -targets["gt_x"], "gt_ctrl": ctrl, "gt_category": mirror_categories(targets["gt_category"])}
+    return {**targets, "gt_x": -targets["gt_x"], "gt_category": mirror_categories(targets["gt_category"])}
 
 
 class ClipDataset(Dataset):

@@ -57,7 +57,7 @@ class _TemporalSampler(Sampler[SampleKey]):
         seed: int,
         rank: int | None,
         world_size: int | None,
-        flip: bool = False,
+        flip: bool,
     ) -> None:
         if batch_size < 1 or num_frames < 1:
             raise ValueError(f"batch_size and num_frames must be >= 1, got {batch_size} and {num_frames}")
@@ -93,7 +93,7 @@ class WindowSampler(_TemporalSampler):
     Targets are the labeled frames (``targets="labeled"``) or all frames (``"all"``). A sample
     is the target plus ``num_frames - 1`` past frames chosen from a window of ``window`` past
     frames, thinned to every ``stride``-th (candidates: stride, 2 stride, ... <= window frames
-    back; default window = (num_frames - 1) * stride):
+    back; window None: (num_frames - 1) * stride):
 
     - ``history="nearest"``: the nearest candidates. Bi²Lane (Sec. IV-A.2) uses "a time window
       of 5 and ... the 3 nearest frames to the current frame as historical frames", in training
@@ -116,15 +116,15 @@ class WindowSampler(_TemporalSampler):
         batch_size: int,
         num_frames: int,
         *,
-        history: str = "nearest",
-        window: int | None = None,
-        stride: int = 1,
-        targets: str = "labeled",
-        shuffle: bool = True,
-        seed: int = 0,
-        rank: int | None = None,
-        world_size: int | None = None,
-        flip: bool = False,
+        history: str,
+        window: int | None,
+        stride: int,
+        targets: str,
+        shuffle: bool,
+        seed: int,
+        rank: int | None,
+        world_size: int | None,
+        flip: bool,
     ) -> None:
         super().__init__(index, batch_size, num_frames, seed, rank, world_size, flip)
         if history not in ("nearest", "random"):
@@ -195,8 +195,8 @@ class StreamSampler(_TemporalSampler):
       clip lengths only, not on the shuffle, so it is the same every pass.
 
     Streams shorter than the pass repeat their last frame as padding (``SampleKey.padding``).
-    An epoch is ``steps_per_epoch`` steps (default: one pass) of an endless walk through pass
-    after pass (pass p shuffled with (seed, p)): with the default, epoch e is pass e; shorter or
+    An epoch is ``steps_per_epoch`` steps (None: one pass) of an endless walk through pass
+    after pass (pass p shuffled with (seed, p)): with None, epoch e is pass e; shorter or
     longer epochs continue where the previous one stopped, so every frame is still visited once
     per pass.
     """
@@ -205,15 +205,15 @@ class StreamSampler(_TemporalSampler):
         self,
         index: FrameIndex,
         batch_size: int,
-        num_frames: int = 1,
+        num_frames: int,
         *,
-        steps_per_epoch: int | None = None,
-        split_clips: bool = True,
-        shuffle: bool = True,
-        seed: int = 0,
-        rank: int | None = None,
-        world_size: int | None = None,
-        flip: bool = False,
+        steps_per_epoch: int | None,
+        split_clips: bool,
+        shuffle: bool,
+        seed: int,
+        rank: int | None,
+        world_size: int | None,
+        flip: bool,
     ) -> None:
         super().__init__(index, batch_size, num_frames, seed, rank, world_size, flip)
         self.offsets = consecutive_offsets(num_frames)

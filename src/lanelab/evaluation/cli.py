@@ -63,9 +63,10 @@ def run(cfg: EvalConfig) -> list[Path]:
     if cfg.checkpoint is not None:
         from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here
 
-        options = {"num_pictures": cfg.pictures.num_frames, "picture_height": cfg.pictures.height,
-                   "blind_prior": cfg.blind_prior, "prior_store": cfg.prior_store}  # fmt: skip
-        evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, cfg.split, cfg.accelerator, **options)
+        options = {"split": cfg.split, "accelerator": cfg.accelerator, "num_pictures": cfg.pictures.num_frames,
+                   "picture_height": cfg.pictures.height, "blind_prior": cfg.blind_prior,
+                   "prior_store": cfg.prior_store}  # fmt: skip
+        evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, **options)
         written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
         return [path for path in written if path.exists()]  # no pictures when num_frames=0
     config = OpenLaneConfig.long_range() if cfg.long_range else OpenLaneConfig()

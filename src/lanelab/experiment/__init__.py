@@ -3,6 +3,8 @@ the evaluation report after training, and ``lanelab-sweep-report`` over multirun
 
 - ``config``: the root schema and the start-up checks; ``targets``: ``_target_`` nodes
   checked against the signatures of what they build;
+- ``build``: a run (datamodule, LightningModule, Trainer, ...) built from its config, and the
+  config every checkpoint carries;
 - ``train``: ``lanelab-train``; ``evaluate``: predictions, report and pictures of a split;
 - ``sweep_report``: ``lanelab-sweep-report``.
 """

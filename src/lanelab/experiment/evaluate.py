@@ -17,8 +17,9 @@ no image) scored on the same ground-truth files, unless ``blind_prior`` is false
 
 :func:`evaluate_checkpoint` does the same from a checkpoint file alone (``lanelab-eval
 checkpoint=... store=...``): lanelab-train writes the run's resolved config into every
-checkpoint, so the model, its metric settings and the data pipeline are rebuilt as trained;
-its blind prior comes from the store the checkpoint was trained on.
+checkpoint (:mod:`lanelab.experiment.build`), so the model, its metric settings and the data
+pipeline are rebuilt as trained; its blind prior comes from the store the checkpoint was
+trained on.
 """
 
 from __future__ import annotations
@@ -29,16 +30,14 @@ from pathlib import Path, PurePosixPath
 
 import lightning.pytorch as pl
 import numpy as np
-import torch
 from omegaconf import DictConfig, OmegaConf
 
-from lanelab.config_checks import ConfigError
 from lanelab.data.datamodule import ClipDataModule
 from lanelab.evaluation.blind_prior import blind_prior_reference
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, Report, build_report, to_text, write_report
+from lanelab.experiment.build import build_run, run_config
 from lanelab.experiment.config import validate
-from lanelab.experiment.train import CONFIG_KEY, train
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.metrics.openlane import evaluate_frames
@@ -100,20 +99,23 @@ def evaluate_checkpoint(
     checkpoint: str | Path,
     store: str | Path,
     out: str | Path,
-    split: str = "test",
-    accelerator: str = "auto",
-    num_pictures: int = 4,
-    picture_height: int = 360,
-    blind_prior: bool = True,
-    prior_store: str | Path | None = None,
+    *,
+    split: str,
+    accelerator: str,
+    num_pictures: int,
+    picture_height: int,
+    blind_prior: bool,
+    prior_store: str | Path | None,
 ) -> dict:
-    """Score a lanelab-train checkpoint on one split of a clip store, on one device: the
-    predictions, report and pictures of :func:`evaluate` under ``out``. Returns report.json's
+    """Score a lanelab-train checkpoint on one split of a clip store, on one device of the
+    accelerator ("cpu", "gpu", "auto"): the predictions, report and pictures (num_pictures
+    rows of picture_height pixels) of :func:`evaluate` under ``out``. Returns report.json's
     content. Raises ConfigError naming the checkpoint when it holds no lanelab run config.
 
     The blind prior (unless blind_prior is False) comes from the train split of prior_store,
-    by default the store the checkpoint was trained on (its run config's ``data.store``),
-    else from the evaluated store's own train split; the report says why when neither has one.
+    or where that is None from the store the checkpoint was trained on (its run config's
+    ``data.store``), else from the evaluated store's own train split; the report says why when
+    neither has one.
     """
     cfg = OmegaConf.create(run_config(checkpoint))
     trained_on = OmegaConf.select(cfg, "data.store")
@@ -126,19 +128,9 @@ def evaluate_checkpoint(
                        "prior_store": None if prior_store is None and trained_on is None else str(prior_store or trained_on)},
         "trainer": {"accelerator": accelerator, "devices": 1, "num_nodes": 1, "strategy": "auto"},
     })  # fmt: skip
-    train(validate(cfg))
+    run = build_run(validate(cfg))
+    evaluate(run.trainer, run.module, run.datamodule, cfg.ckpt_path, cfg.evaluation)
     return json.loads((Path(out) / REPORT_JSON).read_text())
-
-
-def run_config(checkpoint: str | Path) -> dict:
-    """The resolved run config lanelab-train wrote into the checkpoint."""
-    try:
-        content = torch.load(checkpoint, map_location="cpu", weights_only=False)
-    except Exception as err:  # torch raises many kinds for a bad file
-        raise ConfigError(f"checkpoint={checkpoint}: not a readable checkpoint ({err})") from None
-    if not isinstance(content, dict) or CONFIG_KEY not in content:
-        raise ConfigError(f"checkpoint={checkpoint}: holds no lanelab run config (not written by lanelab-train)")
-    return content[CONFIG_KEY]
 
 
 def frame_tags(store: ClipStore, clip_ids: set[str]) -> dict[str, dict[str, str]]:

@@ -3,8 +3,8 @@
     lanelab-train [experiment=NAME] [model=...] [sampler=...] [trainer=...] [logger=...] [key=value ...]
     lanelab-train --multirun --config-dir sweeps --config-name memory_length experiment=tiny
 
-Builds the datamodule, the LightningModule, the callbacks, the loggers and the Trainer from
-the config (Hydra instantiates; nothing here holds a default), then fits, tests and
+Builds the run from the config (:func:`lanelab.experiment.build.build_run`: the datamodule,
+the LightningModule, the callbacks, the loggers and the Trainer), then fits, tests and
 evaluates as ``train``, ``test`` and ``evaluation.enabled`` say. The run folder holds the
 config (``.hydra/``), the checkpoints, the logs, ``metrics.json`` (the last value of every
 logged metric, what ``lanelab-sweep-report`` reads; with the evaluation, also the blind
@@ -21,18 +21,15 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import hydra
-import lightning.pytorch as pl
 import torch
-from hydra.utils import instantiate
 from lightning.pytorch.loggers import WandbLogger
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from lanelab.atomic_file import atomic_output
 from lanelab.config_checks import ConfigError, register_schema
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
+from lanelab.experiment.build import build_run
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
-
-CONFIG_KEY = "lanelab_config"
 
 register_schema(SCHEMA_NAME, TrainConfig)
 
@@ -40,18 +37,8 @@ register_schema(SCHEMA_NAME, TrainConfig)
 def train(cfg: DictConfig) -> dict[str, float]:
     """Run a composed, validated config; the last value of every metric logged by fitting
 and testing (also written to ``metrics.json``)."""
-    pl.seed_everything(cfg.seed, workers=True)
-    if cfg.cpu_threads is not None:
-        torch.set_num_threads(cfg.cpu_threads)
-    datamodule = instantiate(cfg.data)
-    module = instantiate(cfg.model)
-    callbacks = [instantiate(node) for node in (cfg.callbacks or {}).values()]
-    callbacks.append(RunConfigInCheckpoint(cfg))
-    loggers = [instantiate(node) for node in (cfg.logger or {}).values()]
-    trainer = instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
-    for logger in loggers:
-        logger.log_hyperparams(OmegaConf.to_container(cfg, resolve=True))
-
+    run = build_run(cfg)
+    trainer, module, datamodule = run.trainer, run.module, run.datamodule
     weights = cfg.ckpt_path
     metrics: dict[str, float] = {}
     if cfg.train:
@@ -70,23 +57,12 @@ and testing (also written to ``metrics.json``)."""
             # The blind prior's scores on the evaluated split, the reference row of lanelab-sweep-report.
             metrics.update({f"{BLIND_PRIOR_PREFIX}{key}": float(value) for key, value in report.reference.overall.items()})
 
-    for logger in loggers:
+    for logger in run.loggers:
         if isinstance(logger, WandbLogger):
             logger.experiment.finish()  # else the next run in this process (a sweep job) would reuse it
     if trainer.is_global_zero and metrics:  # an evaluation alone logs none
         _write_metrics(Path(cfg.paths.output_dir) / METRICS_JSON, metrics)
     return metrics
-
-
-class RunConfigInCheckpoint(pl.Callback):
-    """Writes the run's resolved config into every checkpoint (key ``lanelab_config``), so that
-    ``lanelab-eval checkpoint=...`` rebuilds the same model and data pipeline from the file alone."""
-
-    def __init__(self, cfg: DictConfig) -> None:
-        self.config = OmegaConf.to_container(cfg, resolve=True)
-
-    def on_save_checkpoint(self, trainer: pl.Trainer, module: pl.LightningModule, checkpoint: dict) -> None:
-        checkpoint[CONFIG_KEY] = self.config
 
 
 def _floats(metrics: Mapping[str, torch.Tensor]) -> dict[str, float]:

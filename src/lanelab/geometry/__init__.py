@@ -1,4 +1,5 @@
-"""Geometry core: rigid transforms, frame conventions, pinhole camera and Catmull-Rom lanes.
+"""Geometry core: rigid transforms, frame conventions, pinhole camera, Catmull-Rom curves and the
+lanes of control points in either representation (``curves``).
 
 Everything is torch, batched over leading dimensions and float32/float64 safe.
 Conventions are those of DESIGN.md, "Coordinate frames and units".
@@ -22,6 +23,7 @@ from lanelab.geometry.catmull_rom import (
     fit_control_points,
     sampling_matrix,
 )
+from lanelab.geometry.curves import REPRESENTATIONS, LaneCurves, lane_bases, sample_lanes
 from lanelab.geometry.frames import (
     T_BASE_LANE,
     T_LANE_BASE,
@@ -46,8 +48,10 @@ from lanelab.geometry.transforms import (
 
 __all__ = [
     "CR_MATRIX",
+    "REPRESENTATIONS",
     "T_BASE_LANE",
     "T_LANE_BASE",
+    "LaneCurves",
     "backproject",
     "backproject_to_lane",
     "base_lane_transform",
@@ -65,6 +69,7 @@ __all__ = [
     "intersect_ground",
     "invert",
     "lane_base_transform",
+    "lane_bases",
     "lane_to_base_link",
     "make_transform",
     "pixel_rays",
@@ -73,6 +78,7 @@ __all__ = [
     "project_lane_points",
     "quaternion_to_rotation",
     "rotation_to_quaternion",
+    "sample_lanes",
     "sampling_matrix",
     "slerp",
     "transform_points",

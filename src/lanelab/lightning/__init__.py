@@ -1,13 +1,16 @@
-"""Lightning wiring: the SparseLaneSTP LightningModule, its predictions and their files.
+"""Lightning wiring: the LightningModule of every lane detector, its predictions and their files.
 
-- ``sparselanestp_module``: :class:`SparseLaneSTPModule` (training, validation, prediction);
+- ``module``: :class:`LaneDetectionModule` (training, validation, prediction of any
+  :class:`lanelab.models.api.LaneDetector`);
 - ``predictions``: model outputs and ground truth as dense lanes;
 - ``openlane_writer``: :class:`OpenLaneWriter`, prediction files in OpenLane's JSON format;
-- ``pictures``: pictures of predictions for the logs; ``optim``: LATR's optimiser schedule.
+- ``pictures``: pictures of predictions for the logs; ``optim``: optimisers and lr schedules;
+- ``legacy``: ``SparseLaneSTPModule``, which the run configs of older checkpoints name.
 """
 
+from lanelab.lightning.legacy import SparseLaneSTPModule
+from lanelab.lightning.module import LaneDetectionModule
 from lanelab.lightning.openlane_writer import OpenLaneWriter
 from lanelab.lightning.predictions import DenseLanes, Lane, PredictionBatch
-from lanelab.lightning.sparselanestp_module import SparseLaneSTPModule
 
-__all__ = ["DenseLanes", "Lane", "OpenLaneWriter", "PredictionBatch", "SparseLaneSTPModule"]
+__all__ = ["DenseLanes", "Lane", "LaneDetectionModule", "OpenLaneWriter", "PredictionBatch", "SparseLaneSTPModule"]

@@ -19,8 +19,6 @@ from lanelab.atomic_file import atomic_output
 from lanelab.lightning.predictions import Lane
 from lanelab.viz import draw_lanes_on_image, draw_top_view
 
-HEIGHT = 360  # pixels of every picture; small model inputs are enlarged to it
-
 
 def prediction_picture(
     image: Tensor,
@@ -30,20 +28,21 @@ def prediction_picture(
     ground_truth: Sequence[Lane],
     x_range: tuple[float, float],
     y_range: tuple[float, float],
+    height: int,
 ) -> np.ndarray:
-    """One frame's picture (HEIGHT, W, 3) RGB uint8.
+    """One frame's picture (height, W, 3) RGB uint8.
 
-    image (3, H, W) as the model saw it (normalised: shown stretched to its own min..max);
-    K (3, 3) of that image; T_lane_cam (4, 4); lanes in the lane frame; x_range, y_range:
-    the lane-frame region of the top views (metres).
+    image (3, H, W) as the model saw it (normalised: shown stretched to its own min..max,
+    enlarged or shrunk to height pixels); K (3, 3) of that image; T_lane_cam (4, 4); lanes in
+    the lane frame; x_range, y_range: the lane-frame region of the top views (metres).
     """
     rgb = image.detach().float().cpu().permute(1, 2, 0).numpy()
     rgb = (255 * (rgb - rgb.min()) / max(float(rgb.max() - rgb.min()), 1e-6)).astype(np.uint8)
-    scale = HEIGHT / rgb.shape[0]
-    bgr = cv2.resize(rgb[..., ::-1], (round(rgb.shape[1] * scale), HEIGHT), interpolation=cv2.INTER_LINEAR)
+    scale = height / rgb.shape[0]
+    bgr = cv2.resize(rgb[..., ::-1], (round(rgb.shape[1] * scale), height), interpolation=cv2.INTER_LINEAR)
     K_scaled = K.detach().double().cpu().numpy() * np.array([[scale], [scale], [1.0]])
     camera = draw_lanes_on_image(bgr, predictions, K_scaled, T_lane_cam.detach().double().cpu().numpy())
-    size = (HEIGHT, HEIGHT // 2)
+    size = (height, height // 2)
     top_gt = draw_top_view(ground_truth, size, x_range, y_range, title="ground truth")
     top_pred = draw_top_view(predictions, size, x_range, y_range, title="prediction")
     return np.concatenate([camera, top_gt, top_pred], axis=1)[..., ::-1].copy()

@@ -18,9 +18,9 @@ import torch
 from torch import Tensor
 
 from lanelab.metrics.openlane_metric import LaneBatch
-from lanelab.models.heads import BACKGROUND_INDEX, index_to_category
+from lanelab.models.api import LaneDetector
+from lanelab.models.categories import BACKGROUND_INDEX, index_to_category
 from lanelab.models.lane_nms import suppress_duplicates
-from lanelab.models.sparselanestp import SparseLaneSTP
 
 
 @dataclass(frozen=True)
@@ -80,13 +80,13 @@ class DenseLanes:
 
 
 def predicted_lanes(
-    net: SparseLaneSTP, outputs: Mapping[str, Any], y: Tensor, threshold: float, nms: tuple[float, float] | None = None
+    net: LaneDetector, outputs: Mapping[str, Any], y: Tensor, threshold: float, nms: tuple[float, float] | None
 ) -> DenseLanes:
-    """The last decoder layer's lanes at longitudinal positions y (S,), from the outputs of
-    ``net.forward`` / ``net.step`` (points (L, B, N, M, 4), logits (L, B, N, K + 1)). A line
-    is a lane where a category outscores the background; nms = (distance, near range), metres:
-    lanes within that mean lateral distance of a more confident one over y <= near range are
-    dropped (models.lane_nms), None: none."""
+    """The last stage's lanes at longitudinal positions y (S,), from the outputs of the
+    detector's ``forward`` / ``step`` (lanelab.models.api: points decoded by ``net.decode``,
+    logits (L, B, N, K + 1)). A line is a lane where a category outscores the background;
+    nms = (distance, near range), metres: lanes within that mean lateral distance of a more
+    confident one over y <= near range are dropped (models.lane_nms), None: none."""
     dense = net.decode(outputs, y)  # (B, N, S, 4)
     probability = outputs["logits"][-1].float().softmax(-1)
     score, index = probability[..., :BACKGROUND_INDEX].max(-1)

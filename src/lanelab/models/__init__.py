@@ -1,17 +1,19 @@
-"""Models: plain nn.Modules, configured by constructor arguments (see conf/model)."""
+"""Models: plain nn.Modules, configured by constructor arguments (see conf/model); every detector
+offers the contract of ``api`` (:class:`LaneDetector`, trained with a :class:`LaneCriterion`)."""
 
+from lanelab.models.api import DetectionOutputs, LaneCriterion, LaneDetector
 from lanelab.models.backbone import ResNet
-from lanelab.models.decoder import DecoderLayer, LaneDecoder
-from lanelab.models.deformable_attention import DeformableCrossAttention
-from lanelab.models.fpn import FPN
-from lanelab.models.heads import (
+from lanelab.models.categories import (
     BACKGROUND_INDEX,
     LANE_CATEGORY_IDS,
     NUM_LANE_CATEGORIES,
-    LaneHead,
     category_to_index,
     index_to_category,
 )
+from lanelab.models.decoder import DecoderLayer, LaneDecoder
+from lanelab.models.deformable_attention import DeformableCrossAttention
+from lanelab.models.fpn import FPN
+from lanelab.models.heads import LaneHead
 from lanelab.models.losses import SparseLaneSTPLoss
 from lanelab.models.matcher import HungarianMatcher
 from lanelab.models.memory_queue import MemoryQueue, MemoryState
@@ -28,8 +30,11 @@ __all__ = [
     "NUM_LANE_CATEGORIES",
     "DecoderLayer",
     "DeformableCrossAttention",
+    "DetectionOutputs",
     "HungarianMatcher",
+    "LaneCriterion",
     "LaneDecoder",
+    "LaneDetector",
     "LaneHead",
     "LaneQueryGenerator",
     "MemoryQueue",

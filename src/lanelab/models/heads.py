@@ -10,12 +10,11 @@ outputs to the previous layer's pre-sigmoid values ("logits" below), so a layer 
 correction, and eq. 5-6 hold with MLP(Q) standing for the accumulated sum. Visibility is
 predicted afresh by every layer, as in LATR (and literally eq. 7).
 
-Two representations of the same M points (the ablation of Table 1):
-- ``"catmull_rom"``: control points of a Catmull-Rom spline (§3.1, supplementary A);
-- ``"discrete"``: LATR's points at fixed y, linearly interpolated in between.
-Both decode as matrix products with ``lane_bases``; visibility is always interpolated linearly.
+The M points decode in either representation of :mod:`lanelab.geometry.curves` (Catmull-Rom
+control points, §3.1, or LATR's discrete points; the ablation of Table 1).
 
-Classification averages the M queries of a line and maps them to K categories + background.
+Classification averages the M queries of a line and maps them to K categories + background
+(:mod:`lanelab.models.categories`).
 """
 
 from __future__ import annotations
@@ -23,30 +22,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from lanelab.geometry import control_point_y, curve_arguments, sampling_matrix
-
-# OpenLane category ids (DESIGN.md, "Lane categories") in the order of the classifier's
-# outputs; the background logit comes after them, at index len(LANE_CATEGORY_IDS).
-LANE_CATEGORY_IDS: tuple[int, ...] = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 20, 21)
-NUM_LANE_CATEGORIES = len(LANE_CATEGORY_IDS)
-BACKGROUND_INDEX = NUM_LANE_CATEGORIES
-
-REPRESENTATIONS = ("catmull_rom", "discrete")
-
-
-def category_to_index(category_ids: Tensor) -> Tensor:
-    """OpenLane category ids (any shape) -> classifier indices 0..K-1; unknown ids raise."""
-    table = torch.full((max(LANE_CATEGORY_IDS) + 1,), -1, dtype=torch.long, device=category_ids.device)
-    table[list(LANE_CATEGORY_IDS)] = torch.arange(NUM_LANE_CATEGORIES, device=category_ids.device)
-    index = table[category_ids.long().clamp(0, len(table) - 1)]
-    if bool(((index < 0) | (category_ids < 0) | (category_ids >= len(table))).any()):
-        raise ValueError(f"category ids must be in {LANE_CATEGORY_IDS}")
-    return index
-
-
-def index_to_category(index: Tensor) -> Tensor:
-    """Classifier indices 0..K-1 (any shape) -> OpenLane category ids."""
-    return torch.tensor(LANE_CATEGORY_IDS, device=index.device)[index]
+from lanelab.geometry import control_point_y
+from lanelab.geometry.curves import LaneCurves
 
 
 def mlp(in_dim: int, hidden_dim: int, out_dim: int, num_hidden: int) -> nn.Sequential:
@@ -66,25 +43,6 @@ def normalise_points(
     low = points.new_tensor([x_range[0], y_range[0], z_range[0], 0.0])
     high = points.new_tensor([x_range[1], y_range[1], z_range[1], 1.0])
     return (points - low) / (high - low)
-
-
-def lane_bases(representation: str, num_points: int, s: Tensor) -> tuple[Tensor, Tensor]:
-    """Matrices (..., S, M) that sample M control points at curve arguments s (..., S): one for
-    the geometry, following the representation (Catmull-Rom or LATR's linear interpolation), one
-    for visibility, always linear: a spline through probabilities overshoots [0, 1], and a
-    clamped overshoot has no gradient, so a lane's end could never be learnt there."""
-    u = s.clamp(0, 1) * (num_points - 1)
-    linear = (1 - (u[..., None] - torch.arange(num_points, dtype=s.dtype, device=s.device)).abs()).clamp(min=0)
-    if representation == "catmull_rom":
-        return sampling_matrix(num_points, s), linear
-    return linear, linear
-
-
-def sample_lanes(points: Tensor, bases: tuple[Tensor, Tensor]) -> Tensor:
-    """Control points (..., M, 4) sampled with ``lane_bases`` (S, M), or (B, S, M) for points
-    (B, N, M, 4) -> (..., S, 4): x, y, z from the geometry basis, v from the visibility one."""
-    geometry, visibility = (basis[:, None] if basis.dim() == 3 else basis for basis in bases)
-    return torch.cat([geometry @ points[..., :3], visibility @ points[..., 3:]], dim=-1)
 
 
 class LaneHead(nn.Module):
@@ -107,8 +65,7 @@ class LaneHead(nn.Module):
         num_hidden: int,
     ) -> None:
         super().__init__()
-        if representation not in REPRESENTATIONS:
-            raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
+        self.curves = LaneCurves(representation, num_points, tuple(y_range))
         self.num_points, self.representation = num_points, representation
         self.x_range, self.y_range, self.z_range = tuple(x_range), tuple(y_range), tuple(z_range)
         # Three MLPs (eq. 5-7) and the classifier (K categories + background).
@@ -156,17 +113,10 @@ class LaneHead(nn.Module):
         """queries (B, N, M, C) -> class logits (B, N, K + 1), background last."""
         return self.class_mlp(queries.mean(dim=-2))
 
-    def bases(self, y: Tensor) -> tuple[Tensor, Tensor]:
-        """The (S, M) bases of geometry and visibility (``lane_bases``) at positions y (S,) in y_range."""
-        s = curve_arguments(y, *self.y_range)
-        if not bool(((s >= -1e-6) & (s <= 1 + 1e-6)).all()):
-            raise ValueError(f"decoding positions y must lie in {self.y_range}")
-        return lane_bases(self.representation, self.num_points, s)
-
     def decode(self, points: Tensor, y: Tensor) -> Tensor:
-        """Control points (..., M, 4) -> dense lanes (..., S, 4) = (x, y, z, v) at y (S,).
-        Computed in the points' precision, also under autocast."""
+        """Control points (..., M, 4) -> dense lanes (..., S, 4) = (x, y, z, v) at y (S,) in
+        y_range. Computed in the points' precision, also under autocast."""
         with torch.autocast(points.device.type, enabled=False):
-            dense = sample_lanes(points, self.bases(y.to(points)))
+            dense = self.curves.sample(points, y.to(points))
         x, _, z, v = dense.unbind(-1)
         return torch.stack([x, y.to(points).expand_as(x), z, v], dim=-1)

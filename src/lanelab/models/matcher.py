@@ -37,8 +37,7 @@ import torch
 from scipy.optimize import linear_sum_assignment
 from torch import Tensor, nn
 
-from lanelab.models.heads import category_to_index
-
+from lanelab.models.categories import category_to_index
 
 MATCH_ON = ("predictions", "anchors")
 
@@ -53,15 +52,15 @@ class HungarianMatcher(nn.Module):
 
     def __init__(
         self,
-        cost_class: float = 1.0,
-        cost_reg: float = 1.0,
-        cost_vis: float = 1.0,
-        gamma: float = 2.0,
-        match_on: str = "predictions",
-        near_range: float = 30.0,
-        max_anchor_distance: float | None = None,
-        positive_distance: float | None = None,
-    ):
+        cost_class: float,
+        cost_reg: float,
+        cost_vis: float,
+        gamma: float,
+        match_on: str,
+        near_range: float,
+        max_anchor_distance: float | None,
+        positive_distance: float | None,
+    ) -> None:
         super().__init__()
         if match_on not in MATCH_ON:
             raise ValueError(f"match_on must be one of {MATCH_ON}, got {match_on!r}")

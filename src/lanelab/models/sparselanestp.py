@@ -4,7 +4,7 @@
           -> L decoder layers (STA with the memory queue -> DCA -> FFN), shared heads -> lP, classes
           -> the N_mem most confident lines enter the memory queue for the next frames
 
-Two ways to run the same weights:
+It is a :class:`lanelab.models.api.LaneDetector`; two ways to run the same weights:
 - ``forward(batch)``, windowed (training, evaluation on windows): the F frames of a window are
   unrolled oldest -> current through a fresh memory queue, reset where a frame follows padding;
 - ``reset(mask)`` / ``step(frame)``, streaming (inference, streaming training): one frame per

@@ -1,5 +1,6 @@
-"""SparseLaneSTP losses: detection (eq. 22-24), priors (LaneCPP spatial, eq. 12-13 temporal), criterion;
-the query generator's auxiliary instance-mask loss."""
+"""SparseLaneSTP losses: detection (eq. 22-24), priors (LaneCPP spatial, eq. 12-13 temporal), their
+sum over the decoder layers (``criterion``), the query generator's auxiliary instance-mask loss,
+and the criterion the Lightning module calls with the model's outputs (``sparselanestp``)."""
 
 from lanelab.models.losses.criterion import TERMS, SparseLaneSTPLoss
 from lanelab.models.losses.detection import focal_loss, regression_loss, visibility_loss
@@ -10,12 +11,15 @@ from lanelab.models.losses.priors import (
     parallelism_and_surface,
     temporal_consistency,
 )
+from lanelab.models.losses.sparselanestp import SparseLaneSTPCriterion, detection_inputs
 
 __all__ = [
     "TERMS",
     "InstanceMaskLoss",
+    "SparseLaneSTPCriterion",
     "SparseLaneSTPLoss",
     "curvature_excess",
+    "detection_inputs",
     "focal_loss",
     "lane_masks",
     "orthogonal_correspondence",

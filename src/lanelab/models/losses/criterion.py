@@ -15,14 +15,13 @@ from collections.abc import Mapping
 import torch
 from torch import Tensor, nn
 
-from lanelab.geometry import curve_arguments
-from lanelab.models.heads import category_to_index, lane_bases, sample_lanes
+from lanelab.geometry.curves import LaneCurves, sample_lanes
+from lanelab.models.categories import category_to_index
 from lanelab.models.losses.detection import focal_loss, regression_loss, visibility_loss
 from lanelab.models.losses.priors import curvature_excess, parallelism_and_surface, temporal_consistency
 from lanelab.models.matcher import HungarianMatcher
 
 TERMS = ("cls", "reg", "vis", "parallel", "surface", "curvature", "temporal")
-REPRESENTATIONS = ("catmull_rom", "discrete")
 
 
 class SparseLaneSTPLoss(nn.Module):
@@ -39,22 +38,20 @@ class SparseLaneSTPLoss(nn.Module):
         *,
         y_range: tuple[float, float],
         num_control_points: int,
-        gamma: float = 2.0,
-        representation: str = "catmull_rom",
-        max_curvature: float = 0.1,
-        temporal_alpha: float = 0.5,
-        temporal_max_distance: float = 1.0,
+        gamma: float,
+        representation: str,
+        max_curvature: float,
+        temporal_alpha: float,
+        temporal_max_distance: float,
     ) -> None:
         super().__init__()
         unknown = set(weights) - set(TERMS)
         if unknown:
             raise ValueError(f"unknown loss terms {sorted(unknown)}; known: {TERMS}")
-        if representation not in REPRESENTATIONS:
-            raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
         self.matcher = matcher
         self.weights = {term: float(weights.get(term, 0.0)) for term in TERMS}
-        self.y_range, self.num_control_points = tuple(y_range), num_control_points
-        self.gamma, self.representation = gamma, representation
+        self.curves = LaneCurves(representation, num_control_points, tuple(y_range))
+        self.gamma = gamma
         self.max_curvature = max_curvature
         self.temporal_alpha, self.temporal_max_distance = temporal_alpha, temporal_max_distance
 
@@ -69,7 +66,7 @@ class SparseLaneSTPLoss(nn.Module):
         losses that must pair lines and lanes alike (the instance masks)."""
         first = outputs["layers"][0]["control_points"]
         losses = {term: first.new_zeros(()) for term in TERMS}
-        bases = self._bases(targets["gt_y"].to(first))  # (S, M) or (B, S, M) each
+        bases = self.curves.bases(targets["gt_y"].to(first))  # (S, M) or (B, S, M) each
         anchors = outputs.get("anchors")
         for layer in outputs["layers"]:
             layer_losses, matches = self._layer_losses(layer["control_points"], layer["logits"], bases, targets, anchors)
@@ -111,11 +108,3 @@ class SparseLaneSTPLoss(nn.Module):
         if self.weights["curvature"]:
             losses["curvature"] = curvature_excess(points, lines, self.max_curvature)
         return losses, matches
-
-    def _bases(self, y: Tensor) -> tuple[Tensor, Tensor]:
-        """The bases (..., S, M) of geometry and visibility (``heads.lane_bases``) at longitudinal
-        positions y (..., S)."""
-        s = curve_arguments(y, *self.y_range)
-        if not bool(((s >= -1e-6) & (s <= 1 + 1e-6)).all()):
-            raise ValueError(f"the ground-truth y grid must lie inside the control points' y range {self.y_range}")
-        return lane_bases(self.representation, self.num_control_points, s)

@@ -1,5 +1,5 @@
-"""SparseLaneSTPModule from conf/model: a Lightning run of every mode, streaming against
-windowed inference, which frames the loss learns from, pictures for the logger."""
+"""LaneDetectionModule with SparseLaneSTP from conf/model: a Lightning run of every mode, streaming
+against windowed inference, which frames the loss learns from, pictures for the logger."""
 
 from __future__ import annotations
 
@@ -14,8 +14,7 @@ from hydra.utils import instantiate
 from lightning.pytorch.loggers import CSVLogger
 from tiny_setup import TRAINER, build_store, data_module, model_config
 
-from lanelab.lightning import OpenLaneWriter, PredictionBatch, SparseLaneSTPModule
-from lanelab.lightning.pictures import HEIGHT
+from lanelab.lightning import LaneDetectionModule, OpenLaneWriter, PredictionBatch
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +22,7 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_store(tmp_path_factory.mktemp("store"), [5, 4])
 
 
-def tiny_module(name: str = "sparselanestp") -> SparseLaneSTPModule:
+def tiny_module(name: str = "sparselanestp") -> LaneDetectionModule:
     torch.manual_seed(0)
     return instantiate(model_config(name))
 
@@ -116,10 +115,8 @@ class ImageLogger(CSVLogger):
 
 
 def test_validation_gives_pictures_to_a_logger_that_takes_images(store, tmp_path):
-    logger = ImageLogger(tmp_path)
-    pl.Trainer(logger=logger, **TRAINER).validate(
-        tiny_module(), data_module(store, "window", num_frames=2, batch_size=3)
-    )
+    logger, module = ImageLogger(tmp_path), tiny_module()
+    pl.Trainer(logger=logger, **TRAINER).validate(module, data_module(store, "window", num_frames=2, batch_size=3))
     pictures = logger.images["val/pictures"]
-    assert len(pictures) == 2 and pictures[0].shape[0] == HEIGHT and pictures[0].dtype == np.uint8
+    assert len(pictures) == 2 and pictures[0].shape[0] == module.pictures["height"] and pictures[0].dtype == np.uint8
     assert not list(tmp_path.rglob("*.png"))  # given to the logger, not written

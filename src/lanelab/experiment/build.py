@@ -1,0 +1,88 @@
+"""A run built from its composed config, and the config every checkpoint carries.
+
+:func:`build_run` instantiates what a config describes (the datamodule, the LightningModule, the
+callbacks, the loggers and the Trainer; Hydra instantiates, nothing here holds a default):
+``lanelab-train`` fits, tests and evaluates it (:mod:`lanelab.experiment.train`), the evaluation
+of a checkpoint predicts with it (:mod:`lanelab.experiment.evaluate`). Every checkpoint of a
+run holds the run's resolved config (:class:`RunConfigInCheckpoint`), which :func:`run_config`
+reads back, brought up to date where older runs wrote keys that are gone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import lightning.pytorch as pl
+import torch
+from hydra.utils import instantiate
+from lightning.pytorch.loggers import Logger
+from omegaconf import DictConfig, OmegaConf
+
+from lanelab.config_checks import ConfigError
+
+CONFIG_KEY = "lanelab_config"
+
+
+@dataclass
+class Run:
+    """What a run config builds."""
+
+    datamodule: pl.LightningDataModule
+    module: pl.LightningModule
+    trainer: pl.Trainer
+    loggers: list[Logger]
+
+
+def build_run(cfg: DictConfig) -> Run:
+    """Seed, set the CPU threads, and build a composed, validated config's run; the loggers
+    get the resolved config as their hyperparameters."""
+    pl.seed_everything(cfg.seed, workers=True)
+    if cfg.cpu_threads is not None:
+        torch.set_num_threads(cfg.cpu_threads)
+    datamodule = instantiate(cfg.data)
+    module = instantiate(cfg.model)
+    callbacks = [instantiate(node) for node in (cfg.callbacks or {}).values()]
+    callbacks.append(RunConfigInCheckpoint(cfg))
+    loggers = [instantiate(node) for node in (cfg.logger or {}).values()]
+    trainer = instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
+    for logger in loggers:
+        logger.log_hyperparams(OmegaConf.to_container(cfg, resolve=True))
+    return Run(datamodule, module, trainer, loggers)
+
+
+class RunConfigInCheckpoint(pl.Callback):
+    """Writes the run's resolved config into every checkpoint (key ``lanelab_config``), so that
+    ``lanelab-eval checkpoint=...`` rebuilds the same model and data pipeline from the file alone."""
+
+    def __init__(self, cfg: DictConfig) -> None:
+        self.config = OmegaConf.to_container(cfg, resolve=True)
+
+    def on_save_checkpoint(self, trainer: pl.Trainer, module: pl.LightningModule, checkpoint: dict) -> None:
+        checkpoint[CONFIG_KEY] = self.config
+
+
+def run_config(checkpoint: str | Path) -> dict[str, Any]:
+    """The resolved run config lanelab-train wrote into the checkpoint, in today's keys.
+    Raises ConfigError naming the checkpoint when it holds none."""
+    try:
+        content = torch.load(checkpoint, map_location="cpu", weights_only=False)
+    except Exception as err:  # torch raises many kinds for a bad file
+        raise ConfigError(f"checkpoint={checkpoint}: not a readable checkpoint ({err})") from None
+    if not isinstance(content, dict) or CONFIG_KEY not in content:
+        raise ConfigError(f"checkpoint={checkpoint}: holds no lanelab run config (not written by lanelab-train)")
+    return _up_to_date(content[CONFIG_KEY])
+
+
+def _up_to_date(config: dict[str, Any]) -> dict[str, Any]:
+    """An older run config with the data keys of today: the Catmull-Rom targets
+    (``data.control_points``) are gone, and the samplers' ``flip`` is given where older configs
+    left it to a default (False). The model of older runs, ``lanelab.lightning.SparseLaneSTPModule``,
+    still builds (lanelab.lightning.legacy)."""
+    data, sampler = config.get("data", {}), config.get("sampler", {})
+    data.pop("control_points", None)
+    for node in (data.get("train_sampler"), data.get("eval_sampler"), sampler.get("train"), sampler.get("eval")):
+        if isinstance(node, dict):
+            node.setdefault("flip", False)
+    return config

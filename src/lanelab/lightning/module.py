@@ -1,0 +1,196 @@
+"""LaneDetectionModule: training, validation and prediction of any lane detector with Lightning,
+through the detector contract of :mod:`lanelab.models.api` alone.
+
+The batch decides how the detector runs (layout: :mod:`lanelab.models.api`):
+- F > 1 frames (window sampler): windowed, ``net(batch)``; the loss and the metric look at
+  the current (last) frame.
+- F = 1 (stream sampler): streaming, StreamPETR-style, ``net.step(frame)`` with the batch's
+  ``reset`` flags: the detector carries its streaming state from step to step. Every
+  validation, test and prediction run starts from an empty state and leaves one behind, so
+  training resumes after a mid-epoch validation as after a clip start.
+Frames count towards the loss and the metric when the current frame is labeled and the sample
+is not ``padding`` (:func:`~lanelab.models.api.scored_frames`).
+
+The loss is the criterion's, called with the detector's outputs as they come and the batch;
+every term it returns is logged. Hydra builds the module from ``conf/model/*.yaml`` (which
+start from ``conf/module/lane_detection.yaml``); it holds no defaults of its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any, TypedDict
+
+import lightning.pytorch as pl
+import torch
+from torch import Tensor, nn
+from torch.optim import Optimizer
+from torch.optim.lr_scheduler import LRScheduler
+
+from lanelab.lightning.pictures import log_pictures, prediction_picture
+from lanelab.lightning.predictions import (
+    DenseLanes,
+    PredictionBatch,
+    ground_truth_lanes,
+    predicted_lanes,
+)
+from lanelab.metrics.openlane import OpenLaneConfig
+from lanelab.metrics.openlane_metric import OpenLaneMetric
+from lanelab.models.api import FRAME_KEYS, DetectionOutputs, LaneCriterion, LaneDetector, scored_frames
+from lanelab.models.backbone import load_torchvision_weights
+from lanelab.openlane.file_paths import frame_path
+
+
+class Pictures(TypedDict):
+    """model.pictures: what validation draws for the logger."""
+
+    num_frames: int  # frames of the first validation batch drawn each validation (0: none)
+    height: int  # pixels of each picture
+    x_range: tuple[float, float]  # metres, lane frame: the region of the top views
+    y_range: tuple[float, float]
+
+
+class BackboneStart(TypedDict):
+    """model.backbone: where the detector's backbone starts."""
+
+    weights: str | None  # a torchvision-layout ResNet state dict file; None: from scratch
+
+
+class LaneDetectionModule(pl.LightningModule):
+    """net: the detector (:class:`~lanelab.models.api.LaneDetector`, an nn.Module); criterion:
+    its loss (:class:`~lanelab.models.api.LaneCriterion`, an nn.Module); metric: the settings of
+    the OpenLane metric of validation and test.
+
+    optimizer: called with net, gives its optimiser (e.g. :func:`lanelab.lightning.optim.adamw`,
+    which scales the lr by parameter name); scheduler: called with the optimiser and the run's
+    number of optimiser steps, gives the lr schedule, stepped every step (e.g.
+    :func:`lanelab.lightning.optim.warmup_cosine`). Both are Hydra partials (conf/optimizer,
+    conf/scheduler).
+    pictures: the validation pictures for the logger (:class:`Pictures`).
+    nms_distance: metres; predicted lanes within this mean lateral distance (over the metric's
+    close range) of a more confident one are dropped (models.lane_nms); None: no NMS.
+    backbone: {"weights": PATH or None}: a torchvision-layout ResNet state dict (e.g. ImageNet
+    weights) loaded into ``net.backbone`` (a lanelab.models.ResNet) when training starts; a
+    resumed run's checkpoint, restored after it, overrides it, and evaluation from a checkpoint
+    never reads it.
+    """
+
+    def __init__(
+        self,
+        net: LaneDetector,
+        criterion: LaneCriterion,
+        *,
+        metric: OpenLaneConfig,
+        optimizer: Callable[[nn.Module], Optimizer],
+        scheduler: Callable[[Optimizer, int], LRScheduler],
+        pictures: Pictures,
+        nms_distance: float | None,
+        backbone: BackboneStart,
+    ) -> None:
+        super().__init__()
+        self.save_hyperparameters(ignore=["net", "criterion", "metric", "optimizer", "scheduler"])
+        self.net, self.criterion = net, criterion
+        self.metric_config = metric
+        self.metrics = nn.ModuleDict({stage: OpenLaneMetric(metric) for stage in ("val", "test")})
+        self.optimizer_factory, self.scheduler_factory = optimizer, scheduler
+        self.pictures = pictures
+        self.nms_distance = nms_distance
+        self.backbone_weights = backbone["weights"]
+
+    def setup(self, stage: str) -> None:
+        # Before a resumed run's checkpoint is restored, which then overrides these weights.
+        if stage == "fit" and self.backbone_weights is not None:
+            load_torchvision_weights(self.net.backbone, self.backbone_weights)
+
+    # ------------------------------------------------------------------ running
+    def forward(self, batch: Mapping[str, Any]) -> DetectionOutputs:
+        """The current frame's outputs (lanelab.models.api): windowed for F > 1, streaming for F = 1."""
+        if batch["images"].shape[1] > 1:
+            return self.net(batch)
+        frame = {key: batch[key][:, -1] for key in FRAME_KEYS}
+        return self.net.step({**frame, "reset": batch["reset"]})
+
+    def _forget_stream(self) -> None:
+        """Empty the streaming state of every stream (whatever the batch size was)."""
+        self.net.reset(torch.ones(1, dtype=torch.bool, device=self.device))
+
+    # Each evaluation run starts from an empty stream state (module doc).
+    on_validation_start = on_validation_end = on_test_start = on_predict_start = _forget_stream
+
+    def _predictions(self, outputs: Mapping[str, Any], batch: Mapping[str, Any]) -> DenseLanes:
+        """Predicted lanes at the ground truth's y grid (the same for every sample)."""
+        nms = None if self.nms_distance is None else (self.nms_distance, self.metric_config.close_range)
+        return predicted_lanes(self.net, outputs, batch["gt_y"][0], self.metric_config.visibility_threshold, nms)
+
+    # ----------------------------------------------------------------- training
+    def training_step(self, batch: Mapping[str, Any], batch_idx: int) -> Tensor:
+        losses = self.criterion(self(batch), batch)
+        count = int(scored_frames(batch).sum())
+        if count:
+            logged = {"train/loss": losses["total"]}
+            logged.update({f"train/loss_{term}": value for term, value in losses.items() if term != "total"})
+            self.log_dict(logged, batch_size=count)
+        return losses["total"]
+
+    # --------------------------------------------------------------- evaluation
+    def validation_step(self, batch: Mapping[str, Any], batch_idx: int) -> None:
+        self._evaluate(batch, batch_idx, "val")
+
+    def test_step(self, batch: Mapping[str, Any], batch_idx: int) -> None:
+        self._evaluate(batch, batch_idx, "test")
+
+    def on_validation_epoch_end(self) -> None:
+        self._log_metric("val")
+
+    def on_test_epoch_end(self) -> None:
+        self._log_metric("test")
+
+    def _evaluate(self, batch: Mapping[str, Any], batch_idx: int, stage: str) -> None:
+        """Add the scored frames to the stage's metric; draw the first batch's."""
+        outputs = self(batch)
+        scored = scored_frames(batch)
+        predictions, ground_truth = self._predictions(outputs, batch), ground_truth_lanes(batch)
+        if scored.any():
+            self.metrics[stage].update(predictions[scored].metric_input(), ground_truth[scored].metric_input())
+        if stage == "val" and batch_idx == 0 and self.pictures["num_frames"] and not self.trainer.sanity_checking:
+            self._log_pictures(batch, predictions, ground_truth, scored)
+
+    def _log_metric(self, stage: str) -> None:
+        """Log the metric of all ranks (the metric sums its states across ranks) and reset it."""
+        metric = self.metrics[stage]
+        self.log_dict({f"{stage}/{key}": value.float() for key, value in metric.compute().items()})
+        metric.reset()
+
+    def _log_pictures(
+        self, batch: Mapping[str, Any], predictions: DenseLanes, ground_truth: DenseLanes, scored: Tensor
+    ) -> None:
+        if not self.trainer.is_global_zero:
+            return
+        view = tuple(self.pictures["x_range"]), tuple(self.pictures["y_range"]), self.pictures["height"]
+        pictures = []
+        for b in scored.nonzero()[:, 0][: self.pictures["num_frames"]].tolist():
+            lanes = predictions.lanes(b, visible_only=False), ground_truth.lanes(b, visible_only=True)
+            camera = batch["images"][b, -1], batch["K"][b, -1], batch["T_lane_cam"][b, -1]
+            pictures.append(prediction_picture(*camera, *lanes, *view))
+        log_pictures(self.trainer, "val/pictures", pictures)
+
+    # --------------------------------------------------------------- prediction
+    def predict_step(self, batch: Mapping[str, Any], batch_idx: int) -> PredictionBatch:
+        """Dense lanes of the real frames of the batch (see :class:`PredictionBatch`)."""
+        outputs = self(batch)
+        real = ~batch["padding"]
+        timestamps = batch["timestamp_ns"][:, -1].tolist()
+        return PredictionBatch(
+            file_paths=[frame_path(c, t) for c, t, r in zip(batch["clip_id"], timestamps, real.tolist()) if r],
+            labeled=batch["labeled"][real, -1],
+            K=batch["K"][real, -1],
+            T_lane_cam=batch["T_lane_cam"][real, -1],
+            predictions=self._predictions(outputs, batch)[real],
+            ground_truth=ground_truth_lanes(batch)[real],
+        )
+
+    # ---------------------------------------------------------------- optimiser
+    def configure_optimizers(self) -> dict[str, Any]:
+        optimizer = self.optimizer_factory(self.net)
+        scheduler = self.scheduler_factory(optimizer, int(self.trainer.estimated_stepping_batches))
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}

@@ -1,0 +1,55 @@
+"""Checkpoints written before LaneDetectionModule still load and score as they did.
+
+data/legacy_sparselanestp.ckpt was written by lanelab-train at commit fe47476 (the tiny
+experiment, a model shrunk further, two steps on tiny_store.build_store's store), stripped to
+its state dict and run config. That config names ``lanelab.lightning.SparseLaneSTPModule``
+with the old keys (criterion, mask_criterion, lr, warmup_steps, num_pictures, ...) and has
+``data.control_points`` and eval samplers without ``flip``. OLD_SCORES is what ``lanelab-eval
+checkpoint=... store=... split=test`` reported for it at that commit.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+from hydra.utils import instantiate
+from omegaconf import OmegaConf
+
+from lanelab.experiment.evaluate import evaluate_checkpoint
+from lanelab.experiment.targets import check_targets
+from lanelab.lightning import LaneDetectionModule
+from lanelab.models.losses import SparseLaneSTPCriterion
+
+LEGACY = Path(__file__).parent / "data" / "legacy_sparselanestp.ckpt"
+OLD_SCORES = {
+    "f1": 0.33333333333333337, "recall": 0.2777777777777778, "precision": 0.4166666666666667,
+    "category_accuracy": 0.0, "x_error_close": 0.8544904265413719, "x_error_far": 1.0551151755269494,
+    "z_error_close": 0.0013740737127443184, "z_error_far": 0.0011331096395704265, "num_frames": 6,
+    "gt_lanes": 18, "pred_lanes": 12, "matched": 6, "recall_tp": 5, "precision_tp": 5, "category_correct": 0,
+}  # fmt: skip
+
+
+def test_an_old_model_config_builds_the_module_that_loads_its_weights():
+    content = torch.load(LEGACY, map_location="cpu", weights_only=False)
+    model = OmegaConf.create(content["lanelab_config"]["model"])
+    assert model._target_ == "lanelab.lightning.SparseLaneSTPModule" and "mask_criterion" in model
+    check_targets(model)
+    module = instantiate(model)
+    assert isinstance(module, LaneDetectionModule) and isinstance(module.criterion, SparseLaneSTPCriterion)
+    assert module.criterion.instance_mask.dice_weight == model.mask_criterion.dice_weight
+    optimizer = module.optimizer_factory(module.net)
+    assert optimizer.defaults["lr"] == model.lr and optimizer.defaults["weight_decay"] == model.weight_decay
+    assert module.pictures["num_frames"] == model.num_pictures and module.nms_distance == model.nms_distance
+    # The same parameters and buffers under the same names: a strict load leaves nothing out.
+    module.load_state_dict(content["state_dict"], strict=True)
+    loaded = module.state_dict()
+    assert all(torch.equal(loaded[key], value) for key, value in content["state_dict"].items())
+
+
+def test_an_old_checkpoint_scores_as_it_did(tiny_store: Path, tmp_path: Path) -> None:
+    options = {"split": "test", "accelerator": "cpu", "num_pictures": 1, "picture_height": 96, "blind_prior": False,
+               "prior_store": None}  # fmt: skip
+    report = evaluate_checkpoint(LEGACY, tiny_store, tmp_path, **options)
+    assert report["overall"] == pytest.approx(OLD_SCORES, rel=1e-6, abs=1e-9)
