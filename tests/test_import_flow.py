@@ -27,6 +27,8 @@ FORBIDDEN = {
                            "lanelab.evaluation", "data_ingest", "lightning", "hydra", "omegaconf"),
     "src/lanelab/metrics": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
                             "lanelab.evaluation", "data_ingest"),
+    "src/lanelab/evaluation": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
+                               "data_ingest"),
     "src/lanelab/geometry": ("lanelab.store", "lanelab.data", "lanelab.models", "lanelab.lightning",
                              "lanelab.experiment", "lanelab.metrics", "lanelab.evaluation", "data_ingest"),
 }  # fmt: skip

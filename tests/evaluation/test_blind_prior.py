@@ -23,7 +23,7 @@ from lanelab.evaluation.blind_prior import (
     score_blind_prior,
     write_blind_prior_predictions,
 )
-from lanelab.evaluation.cli import run
+from lanelab.experiment.eval_cli import run
 from lanelab.evaluation.config import load_eval_config
 from lanelab.evaluation.report import build_report, to_json, to_markdown, to_text
 from lanelab.metrics.openlane import OpenLaneConfig, evaluate, evaluate_frames, summarize

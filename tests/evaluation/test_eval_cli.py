@@ -9,7 +9,7 @@ import cv2
 import pytest
 from eval_helpers import NAMES, write_prediction_set
 
-from lanelab.evaluation.cli import run
+from lanelab.experiment.eval_cli import run
 from lanelab.evaluation.config import ConfigError, load_eval_config
 from lanelab.json_files import LaneFileError
 
@@ -19,7 +19,7 @@ def options(data, out, *extra):
 
 
 def run_eval(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "lanelab.evaluation.cli", *args],
+    return subprocess.run([sys.executable, "-m", "lanelab.experiment.eval_cli", *args],
                           capture_output=True, text=True, timeout=120)
 
 

@@ -11,7 +11,7 @@ import torch
 from tiny_store import tiny_overrides
 
 from lanelab.config_checks import ConfigError
-from lanelab.evaluation.cli import run
+from lanelab.experiment.eval_cli import run
 from lanelab.evaluation.config import load_eval_config
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.train import train
@@ -40,7 +40,7 @@ def test_a_checkpoint_scores_as_at_the_end_of_its_run(tiny_store: Path, tmp_path
 def test_a_checkpoint_without_a_run_config_is_named(tmp_path: Path, tiny_store: Path) -> None:
     foreign = tmp_path / "foreign.ckpt"
     torch.save({"state_dict": {}}, foreign)
-    result = subprocess.run([sys.executable, "-m", "lanelab.evaluation.cli", f"checkpoint={foreign}",
+    result = subprocess.run([sys.executable, "-m", "lanelab.experiment.eval_cli", f"checkpoint={foreign}",
                              f"store={tiny_store}", f"out={tmp_path / 'out'}"],
                             capture_output=True, text=True, timeout=120)  # fmt: skip
     assert result.returncode == 2 and f"checkpoint={foreign}: holds no lanelab run config" in result.stderr

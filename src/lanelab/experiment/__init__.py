@@ -1,4 +1,4 @@
-"""Experiments: the ``lanelab-train`` entry point over the ``conf/`` tree, its config checks,
+"""Experiments: the ``lanelab-train`` and ``lanelab-eval`` entry points over the ``conf/`` tree, its config checks,
 the evaluation report after training, and ``lanelab-sweep-report`` over multiruns.
 
 - ``config``: the root schema and the start-up checks; ``targets``: ``_target_`` nodes
@@ -6,6 +6,7 @@ the evaluation report after training, and ``lanelab-sweep-report`` over multirun
 - ``build``: a run (datamodule, LightningModule, Trainer, ...) built from its config, and the
   config every checkpoint carries;
 - ``train``: ``lanelab-train``; ``evaluate``: predictions, report and pictures of a split;
+- ``eval_cli``: ``lanelab-eval``, over prediction files or a checkpoint on a store;
 - ``sweep_report``: ``lanelab-sweep-report``.
 """
 

@@ -61,7 +61,7 @@ def run(cfg: EvalConfig) -> list[Path]:
     from lanelab.openlane.lists import read_scenario_lists
 
     if cfg.checkpoint is not None:
-        from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here
+        from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here: files need neither
 
         options = {"split": cfg.split, "accelerator": cfg.accelerator, "num_pictures": cfg.pictures.num_frames,
                    "picture_height": cfg.pictures.height, "blind_prior": cfg.blind_prior,
