@@ -43,12 +43,14 @@ from lanelab.evaluation.report import REFERENCE_KEY
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.train import train
+from lanelab.metrics.openlane import DETECTION_SCORES, OpenLaneConfig
 from lanelab.viz.charts import chart_grid, line_chart
 
 BENCHMARKS = Path(__file__).resolve().parent
 SECTION = "## Learning (`benchmarks/bench_learning.py`)"
-SCORES = ("f1", "precision", "recall", "x_error_close", "x_error_far", "z_error_close", "z_error_far")
-VALIDATION = ("val/f1", "val/x_error_close", "val/x_error_far", "val/z_error_close", "val/z_error_far")
+ERRORS = tuple(OpenLaneConfig().pair_value_names)  # the official metric's: x / z errors close and far
+SCORES = (*DETECTION_SCORES, *ERRORS)
+VALIDATION = ("val/f1", *(f"val/{error}" for error in ERRORS))
 
 
 def main() -> None:
@@ -206,7 +208,7 @@ def _row(name: str, seed: str, steps: str, minutes: str, scores: dict) -> str:
     cells = []
     for key in SCORES:
         value = scores.get(key)
-        scale, digits = (100, 1) if key in ("f1", "precision", "recall") else (1, 3)
+        scale, digits = (100, 1) if key in DETECTION_SCORES else (1, 3)
         if isinstance(value, tuple):
             cells.append("–" if math.isnan(value[0]) else f"{scale * value[0]:.{digits}f} ± {scale * value[1]:.{digits}f}")
         else:

@@ -32,14 +32,13 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from lanelab.atomic_file import atomic_output
-from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, summarize
+from lanelab.metrics.openlane import RATE_KEYS, FrameResult, OpenLaneConfig, summarize
 from lanelab.metrics.scenarios import Scenario, markdown_table, mean_f1, scenario_rows
 
 REPORT_JSON = "report.json"
 REPORT_MARKDOWN = "report.md"
 PICTURES_PNG = "pictures.png"  # the pictures beside the report (lanelab.evaluation.pictures)
 REFERENCE_KEY = "blind_prior"  # report.json's key of the reference (lanelab.evaluation.blind_prior)
-_SCORES = ("f1", "precision", "recall", "category_accuracy")
 
 
 @dataclass(frozen=True)
@@ -186,7 +185,7 @@ def _tables(report: Report) -> list[tuple[str, str]]:
     overall and scenario-F1 tables get a first column naming the row (the predictions, the
     reference)."""
     names = _display_names(report.config)
-    metrics = [*_SCORES, *[names.get(n, n) for n in report.config.pair_value_names]]
+    metrics = [*RATE_KEYS, *[names.get(n, n) for n in report.config.pair_value_names]]
     reference = report.reference
     scored = reference is not None and reference.overall is not None
     if scored:

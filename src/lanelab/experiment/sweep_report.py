@@ -40,10 +40,10 @@ import yaml
 
 from lanelab.atomic_file import atomic_output
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
+from lanelab.metrics.openlane import DETECTION_SCORES
 from lanelab.metrics.scenarios import markdown_table
 
 REPORT_MD, REPORT_CSV, PLOT_PNG = "sweep_report.md", "sweep_report.csv", "sweep_f1.png"
-_SCORES = ("f1", "precision", "recall")
 BLIND_PRIOR_ROW = "blind prior"  # the reference row's label (lanelab.evaluation.blind_prior.NAME)
 
 
@@ -90,7 +90,7 @@ def table_rows(jobs: list[Job], keys: list[str]) -> tuple[list[dict[str, object]
     stage = "test/" if any(key.startswith("test/") for job in jobs for key in job.metrics) else "val/"
     names = sorted({key[len(stage):] for job in jobs for key in job.metrics if key.startswith(stage)})
     errors = [name for name in names if name.startswith(("x_error_", "z_error_"))]
-    columns = [name for name in _SCORES if name in names] + errors + (["vis_iou"] if "vis_iou" in names else [])
+    columns = [name for name in DETECTION_SCORES if name in names] + errors + (["vis_iou"] if "vis_iou" in names else [])
     rows = []
     for job in jobs:
         row: dict[str, object] = {key: job.overrides.get(key, "") for key in keys}

@@ -104,6 +104,9 @@ class OpenLaneConfig:
         return names + (["vis_iou"] if self.vis_iou else [])
 
 
+# The scores detection_scores returns, fractions: the detection scores every table shows first.
+DETECTION_SCORES = ("f1", "precision", "recall")
+RATE_KEYS = (*DETECTION_SCORES, "category_accuracy")
 # Per-frame counts that add up over frames (the keys of FrameResult.counts).
 COUNT_KEYS = ("gt_lanes", "pred_lanes", "matched", "recall_tp", "precision_tp", "category_correct")
 

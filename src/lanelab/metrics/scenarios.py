@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Iterable, Mapping, Sequence
 
-from lanelab.metrics.openlane import FrameResult, summarize
+from lanelab.metrics.openlane import RATE_KEYS, FrameResult, summarize
 from lanelab.openlane.lists import OPENLANE_SCENARIOS, frame_key
 
 # Tag key -> column group of SparseLaneSTP's Table 7 (daytime and weather share a group).
@@ -105,7 +105,7 @@ def mean_f1(rows: Sequence[Mapping[str, str | int | float]]) -> float:
 
 _TEXT_COLUMNS = ("predictions", "group", "scenario")  # left-aligned
 # Fractions shown in percent, as the papers print them.
-_PERCENT = {"f1", "recall", "precision", "category_accuracy", "vis_iou"}
+_PERCENT = {*RATE_KEYS, "vis_iou"}
 _LABELS = {
     "predictions": "Predictions",  # a row's name where rows are several predictions (a model, the blind prior)
     "group": "Group",
