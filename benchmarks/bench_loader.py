@@ -29,7 +29,7 @@ from omegaconf import OmegaConf
 from data_ingest.synth.config import load_synth_config
 from data_ingest.synth.drive import SyntheticDrive
 from lanelab.geometry.frames import extrinsic_base_to_lane, pose_base_to_lane
-from lanelab.store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
+from lanelab.store import ClipEntry, FrameRecord, Manifest, write_clip, write_manifest
 from lanelab.store.image_codec import decode_image
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
@@ -51,7 +51,7 @@ def write_store(root: Path, num_frames: int, clip_frames: int = 100) -> None:
             records.append(FrameRecord(
                 frame.timestamp_ns, jpeg.tobytes(), "jpeg", WIDTH, HEIGHT, drive.camera.K, T_lane_cam,
                 pose_base_to_lane(torch.from_numpy(frame.T_world_base)).numpy(), True,
-                [LaneRecord(lane.track_id, lane.category, lane.points, lane.visibility) for lane in frame.lanes],
+                frame.lanes,
                 frame.tags,
             ))
         clip_id = f"synth{clip:03d}"

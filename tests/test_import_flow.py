@@ -75,7 +75,7 @@ def test_the_check_sees_a_backward_import(tmp_path, monkeypatch):
     assert backward_imports("pkg", ("lanelab.metrics",)) == ["pkg/mod.py imports lanelab.metrics"]
 
 
-@pytest.mark.parametrize("module", ["lanelab.store", "lanelab.openlane"])
+@pytest.mark.parametrize("module", ["lanelab.lanes", "lanelab.store", "lanelab.openlane"])
 def test_stages_before_the_model_load_no_torch(module):
     code = f"import sys, {module}; sys.exit('torch' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0, f"{module} imports torch"

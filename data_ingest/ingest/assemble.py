@@ -31,7 +31,8 @@ from data_ingest.ingest.messages import LanesMsg
 from data_ingest.ingest.scan import ImageRef, LogContents
 from data_ingest.ingest.tf_tree import TfTree
 from lanelab.geometry import T_BASE_LANE, T_LANE_BASE, invert
-from lanelab.store import FrameRecord, LaneRecord
+from lanelab.lanes import Lane
+from lanelab.store import FrameRecord
 
 _T_BASE_LANE = T_BASE_LANE.numpy()
 _T_LANE_BASE = T_LANE_BASE.numpy()
@@ -175,7 +176,7 @@ def _lookup(tf: TfTree, target: str, source: str, stamps: np.ndarray, keep: _Kee
 
 
 def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray, cfg: IngestConfig,
-            notes: list[str]) -> dict[int, list[LaneRecord]]:
+            notes: list[str]) -> dict[int, list[Lane]]:
     """Lanes of the frames (by index into ``stamps``) that a label matches; problems go to ``notes``."""
     topic, world = cfg.topics.lanes, cfg.frames.world
     if not contents.labels or not len(stamps):
@@ -198,7 +199,7 @@ def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray,
     for f, k in best.items():
         by_frame_id[contents.labels[k].frame_id].append((f, k))
 
-    lanes: dict[int, list[LaneRecord]] = {}
+    lanes: dict[int, list[Lane]] = {}
     for frame_id, pairs in sorted(by_frame_id.items()):
         if not contents.tf.connected(world, frame_id):
             notes.append(f"{topic}: {len(pairs)} labels in frame {frame_id!r}, which the TF tree never connects "
@@ -217,7 +218,7 @@ def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray,
     return lanes
 
 
-def _lanes_in_lane_frame(label: LanesMsg, T_lane_label: np.ndarray) -> list[LaneRecord]:
+def _lanes_in_lane_frame(label: LanesMsg, T_lane_label: np.ndarray) -> list[Lane]:
     """A label's lanes mapped by T_lane_label (4, 4): float32 points sorted by y, non-finite points dropped."""
     lane = np.repeat(np.arange(len(label.num_points)), label.num_points)  # (P,) lane of each point
     points = label.points @ T_lane_label[:3, :3].T + T_lane_label[:3, 3]
@@ -226,7 +227,7 @@ def _lanes_in_lane_frame(label: LanesMsg, T_lane_label: np.ndarray) -> list[Lane
     order = order[np.lexsort((points[order, 1], lane[order]))]  # by lane, then y
     counts = np.bincount(lane[order], minlength=len(label.num_points))
     split_at = np.cumsum(counts)[:-1]
-    return [LaneRecord(int(track_id), int(category), p, v)
+    return [Lane(p, v, int(category), track_id=int(track_id))
             for track_id, category, p, v, n in zip(label.track_ids, label.categories,
                                                    np.split(points[order].astype(np.float32), split_at),
                                                    np.split(label.visibility[order].astype(np.float32), split_at),

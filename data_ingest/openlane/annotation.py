@@ -44,9 +44,8 @@ import numpy as np
 
 from lanelab.geometry.frames import T_BASE_LANE
 from lanelab.json_files import LaneFileError, load_json_object, numeric_array, require, require_list
+from lanelab.lanes import NO_TRACK, Lane
 from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_camera
-from lanelab.openlane.read import NO_TRACK
-from lanelab.store import LaneRecord
 
 NS_PER_NAME_UNIT = 10  # file names count 10 ns units (microseconds followed by "00")
 
@@ -65,7 +64,7 @@ class Annotation:
     K: np.ndarray
     T_lane_cam: np.ndarray
     T_world_lane: np.ndarray | None
-    lanes: list[LaneRecord]
+    lanes: list[Lane]
 
 
 def timestamp_ns(path: str | os.PathLike[str]) -> int:
@@ -115,14 +114,14 @@ def read_annotation(path: str | os.PathLike[str]) -> Annotation:
     )
 
 
-def _lane(lane: Any, T_lane_cam: np.ndarray, path: str | os.PathLike[str], where: str) -> LaneRecord:
+def _lane(lane: Any, T_lane_cam: np.ndarray, path: str | os.PathLike[str], where: str) -> Lane:
     xyz = numeric_array(require(lane, "xyz", path, where), (3, None), f"{where}.xyz", path)
     visibility = numeric_array(require(lane, "visibility", path, where), (None,), f"{where}.visibility", path)
     if len(visibility) != xyz.shape[1]:
         raise LaneFileError(path, f"{where}: {len(visibility)} visibility values for {xyz.shape[1]} points")
     points = camera_lane_to_ground(xyz, T_lane_cam)
     order = np.argsort(points[:, 1], kind="stable")  # the store's lanes run near to far
-    return LaneRecord(
+    return Lane(
         track_id=_integer(lane.get("track_id", NO_TRACK), f"{where}.track_id", path),
         category=_integer(require(lane, "category", path, where), f"{where}.category", path),
         points=points[order].astype(np.float32),

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lanelab.lanes import LEFT_CURBSIDE, RIGHT_CURBSIDE
+
 WHITE, YELLOW = "white", "yellow"
-LEFT_CURBSIDE, RIGHT_CURBSIDE = 20, 21
 # (colour, dashed, double) -> OpenLane category id
 _CATEGORY = {
     (WHITE, True, False): 1, (WHITE, False, False): 2, (WHITE, True, True): 3, (WHITE, False, True): 4,

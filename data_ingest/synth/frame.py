@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lanelab.lanes import Lane
+
 
 @dataclass(frozen=True)
 class CameraModel:
@@ -26,21 +28,6 @@ class CameraModel:
     height: int
     T_base_cam: np.ndarray
     frame_id: str = "camera_front_optical"
-
-
-@dataclass(frozen=True)
-class LaneLabel:
-    """One ground-truth 3D lane line of a frame.
-
-    points: (P, 3) float64 in the lane frame of the frame's ego pose, y ascending.
-    visibility: (P,) float32 in [0, 1]; 0 where the point is outside the image,
-    behind an occluding vehicle or hidden behind a crest.
-    """
-
-    track_id: int
-    category: int
-    points: np.ndarray
-    visibility: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -61,12 +48,14 @@ class SynthFrame:
 
     image: (H, W, 3) uint8, BGR (OpenCV order).
     T_world_base: (4, 4) ego pose, ``odom`` <- ``base_link``, at ``timestamp_ns``.
+    lanes: the ground truth in the lane frame of that pose; a point's visibility is 0 where it
+    is outside the image, behind an occluding vehicle or hidden behind a crest.
     """
 
     index: int
     timestamp_ns: int
     image: np.ndarray
     T_world_base: np.ndarray
-    lanes: list[LaneLabel]
+    lanes: list[Lane]
     lanes2d: list[Lane2D]
     tags: dict[str, str] = field(default_factory=dict)

@@ -18,11 +18,12 @@ import torch
 
 from data_ingest.synth.boxes import Boxes
 from data_ingest.synth.camera import SUBPIXEL_BITS, View, cv_points
-from data_ingest.synth.frame import CameraModel, Lane2D, LaneLabel
+from data_ingest.synth.frame import CameraModel, Lane2D
 from data_ingest.synth.road import Road
 from lanelab.geometry.camera import in_image, project_lane_points
 from lanelab.geometry.frames import extrinsic_base_to_lane, pose_base_to_lane
 from lanelab.geometry.transforms import invert, transform_points
+from lanelab.lanes import Lane
 
 NEAR_STEP_M, FAR_STEP_M, FAR_FROM_M = 1.0, 2.0, 50.0  # label point spacing along the road
 ARC_MARGIN = 1.6  # arc length sampled per metre of range: lanes curving away need more
@@ -43,7 +44,7 @@ NIGHT_MISS, FALSE_FRAGMENTS_PER_FRAME = 0.1, 0.3
 
 @dataclass(frozen=True)
 class FrameTruth:
-    lanes: list[LaneLabel]
+    lanes: list[Lane]
     lanes2d: list[Lane2D]
     tags: dict[str, str]
 
@@ -77,8 +78,8 @@ class Labeler:
         for k, line in enumerate(self.road.cross_section.lines):
             mine = points.line == k
             if mine.sum() >= 2:
-                lanes.append(LaneLabel(line.track_id, line.category, points.lane[mine],
-                                       points.visible[mine].astype(np.float32)))
+                lanes.append(Lane(points.lane[mine], points.visible[mine].astype(np.float32), line.category,
+                                  track_id=line.track_id))
         rng = np.random.default_rng([*self.seed, frame_index])
         near = points.lane[:, 1] <= OCCLUSION_RANGE_M
         return FrameTruth(lanes, self._detections(points, rng), self._tags(ego_s, in_view & near, occluded & near))

@@ -12,7 +12,8 @@ from typing import Any, Mapping, Sequence
 
 from data_ingest.contract import LANES2D_TYPE, LANES3D_TYPE, TAGS_TYPE
 from data_ingest.synth.foxglove_json import TIME_SCHEMA
-from data_ingest.synth.frame import Lane2D, LaneLabel
+from data_ingest.synth.frame import Lane2D
+from lanelab.lanes import Lane
 
 _POINT3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 _POINT2 = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
@@ -81,7 +82,7 @@ def time_json(t_ns: int) -> dict[str, int]:
     return {"sec": sec, "nsec": nsec}
 
 
-def lanes3d(t_ns: int, frame_id: str, lanes: Sequence[LaneLabel]) -> dict[str, Any]:
+def lanes3d(t_ns: int, frame_id: str, lanes: Sequence[Lane]) -> dict[str, Any]:
     """A ``lanelab.Lanes3D`` message; each lane's points must already be in ``frame_id``."""
     return {
         "timestamp": time_json(t_ns),

@@ -46,9 +46,10 @@ from data_ingest.synth.encoders import (
     make_encoder,
 )
 from data_ingest.synth.foxglove_json import dumps
-from data_ingest.synth.frame import CameraModel, LaneLabel, SynthFrame
+from data_ingest.synth.frame import CameraModel, SynthFrame
 from lanelab.atomic_file import atomic_output
 from lanelab.geometry import T_BASE_LANE, compose, invert, rotation_to_quaternion, transform_points
+from lanelab.lanes import Lane
 
 METADATA_NAME = "lanelab.synth"
 MAX_LAG_NS = 30_000_000  # log time - sensor time is drawn from [0, MAX_LAG_NS]
@@ -293,7 +294,7 @@ def ego_transforms(drive: DriveSource, cfg: SynthConfig) -> list[StampedTransfor
     ]
 
 
-def labels_in(frame: SynthFrame, cfg: SynthConfig) -> tuple[str, list[LaneLabel]]:
+def labels_in(frame: SynthFrame, cfg: SynthConfig) -> tuple[str, list[Lane]]:
     """``frame.lanes`` (lane frame) re-expressed in ``cfg.labels_frame``: (frame_id, lanes)."""
     if cfg.labels_frame == "base_link":
         frame_id, T = cfg.frames.ego, T_BASE_LANE

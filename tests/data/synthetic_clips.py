@@ -13,7 +13,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lanelab.store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
+from lanelab.lanes import Lane
+from lanelab.store import ClipEntry, FrameRecord, Manifest, write_clip, write_manifest
 
 HEIGHT, WIDTH = 48, 64
 K = np.array([[60.0, 0.0, 32.0], [0.0, 60.0, 20.0], [0.0, 0.0, 1.0]])
@@ -22,10 +23,10 @@ T_LANE_CAM = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 1.5], [0, 0, 0, 
 FRAME_NS = 100_000_000
 
 
-def lane_record(track_id: int, x: float) -> LaneRecord:
+def lane_record(track_id: int, x: float) -> Lane:
     y = np.arange(0.0, 61.0, 2.0)
     points = np.stack([np.full_like(y, x), y, np.zeros_like(y)], axis=1).astype(np.float32)
-    return LaneRecord(track_id, 2, points, np.ones(len(y), np.float32))
+    return Lane(points, np.ones(len(y), np.float32), 2, track_id=track_id)
 
 
 def frame_record(clip: int, position: int, labeled: bool) -> FrameRecord:

@@ -26,24 +26,25 @@ from lanelab.evaluation.blind_prior import (
 from lanelab.experiment.eval_cli import run
 from lanelab.evaluation.config import load_eval_config
 from lanelab.evaluation.report import build_report, to_json, to_markdown, to_text
+from lanelab.lanes import Lane
 from lanelab.metrics.openlane import OpenLaneConfig, evaluate, evaluate_frames, summarize
 from lanelab.metrics.scenarios import scenarios_of
 from lanelab.openlane.lists import read_scenario_lists
-from lanelab.store import ClipEntry, LaneRecord, Manifest, write_clip, write_manifest
+from lanelab.store import ClipEntry, Manifest, write_clip, write_manifest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data"))  # the data tests' store helpers
 from synthetic_clips import frame_record  # noqa: E402
 
 
 def lane(track_id: int, x: float, category: int = 1, y_end: float = 60.0, y_start: float = 0.0,
-         visible: bool = True) -> LaneRecord:  # fmt: skip
+         visible: bool = True) -> Lane:  # fmt: skip
     """A straight lane at x, points every 2 m from y_start to y_end."""
     y = np.arange(y_start, y_end + 1.0, 2.0)
     points = np.stack([np.full_like(y, x), y, np.zeros_like(y)], axis=1).astype(np.float32)
-    return LaneRecord(track_id, category, points, np.full(len(y), float(visible), np.float32))
+    return Lane(points, np.full(len(y), float(visible), np.float32), category, track_id=track_id)
 
 
-def labeled_lanes(i: int) -> list[LaneRecord]:
+def labeled_lanes(i: int) -> list[Lane]:
     """The lanes of the i-th labeled training frame (i = 0..9); see test_the_prior_has_the_expected_slots."""
     lanes = [
         # L1: -1.5 / -2.0 by turns, category 2 in frames 0-6 and 1 after, occluded in frames 8 and 9

@@ -4,7 +4,8 @@ import cv2
 import numpy as np
 from eval_helpers import NAMES, write_prediction_set
 
-from lanelab.evaluation.pictures import Lane, PictureFrame, draw_pictures, pick_frames, read_openlane_frame
+from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame
+from lanelab.lanes import Lane
 from lanelab.viz import CATEGORY_COLORS
 
 K = np.array([[100.0, 0, 80], [0, 100, 60], [0, 0, 1]])

@@ -14,7 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lanelab.store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
+from lanelab.lanes import Lane
+from lanelab.store import ClipEntry, FrameRecord, Manifest, write_clip, write_manifest
 from lanelab.viz import draw_lanes_on_image
 
 HEIGHT, WIDTH = 64, 96
@@ -30,8 +31,8 @@ FRAMES_PER_CLIP = 6
 def _frame(clip: int, position: int, weather: str) -> FrameRecord:
     sway = 0.5 * np.sin(0.9 * position + clip)
     lanes = [
-        LaneRecord(track, 2, np.stack([np.full_like(Y, x - sway), Y, np.zeros_like(Y)], 1).astype(np.float32),
-                   np.ones(len(Y), np.float32))
+        Lane(np.stack([np.full_like(Y, x - sway), Y, np.zeros_like(Y)], 1).astype(np.float32),
+             np.ones(len(Y), np.float32), 2, track_id=track)
         for track, x in LANE_X.items()
     ]  # fmt: skip
     image = np.full((HEIGHT, WIDTH, 3), 90, np.uint8)

@@ -19,7 +19,8 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from lanelab.data.datamodule import ClipDataModule
-from lanelab.store import ClipEntry, FrameRecord, LaneRecord, Manifest, write_clip, write_manifest
+from lanelab.lanes import Lane
+from lanelab.store import ClipEntry, FrameRecord, Manifest, write_clip, write_manifest
 from lanelab.viz import draw_lanes_on_image
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
@@ -37,14 +38,14 @@ def ego_offset(position: int) -> float:
     return 0.6 * np.sin(0.8 * position)
 
 
-def lanes_at(position: int) -> list[LaneRecord]:
+def lanes_at(position: int) -> list[Lane]:
     """The lanes of frame `position` in its lane frame: a static road that bends (world lanes
     x = x0 + 1.5 sin(y / 40)), seen by the ego at world (ego_offset, 2 m per frame)."""
     records = []
     for track_id, category, x0 in LANES:
         x = x0 + 1.5 * np.sin((Y + 2.0 * position) / 40.0) - ego_offset(position)
         points = np.stack([x, Y, np.zeros_like(Y)], axis=1).astype(np.float32)
-        records.append(LaneRecord(track_id, category, points, np.ones(len(Y), np.float32)))
+        records.append(Lane(points, np.ones(len(Y), np.float32), category, track_id=track_id))
     return records
 
 

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from lanelab.lanes import NO_TRACK
 from lanelab.metrics.openlane import evaluate_frame
 from lanelab.metrics.temporal_consistency import (
-    NO_TRACK,
     PosedLanes,
     carry_lanes,
     clip_jitter,

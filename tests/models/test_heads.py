@@ -3,13 +3,8 @@ import torch
 from torch import nn
 
 from lanelab.geometry import evaluate
-from lanelab.models.categories import (
-    BACKGROUND_INDEX,
-    LANE_CATEGORY_IDS,
-    NUM_LANE_CATEGORIES,
-    category_to_index,
-    index_to_category,
-)
+from lanelab.lanes import LANE_CATEGORY_IDS
+from lanelab.models.categories import BACKGROUND_INDEX, NUM_LANE_CATEGORIES, category_to_index, index_to_category
 from lanelab.models.heads import LaneHead
 
 C, M, CLASSES = 16, 6, NUM_LANE_CATEGORIES

@@ -5,7 +5,8 @@ import torch
 from loss_setup import build_matcher
 
 from lanelab.geometry import control_point_y, evaluate
-from lanelab.models.categories import BACKGROUND_INDEX, LANE_CATEGORY_IDS, category_to_index
+from lanelab.lanes import LANE_CATEGORY_IDS
+from lanelab.models.categories import BACKGROUND_INDEX, category_to_index
 
 M, Y_RANGE = 6, (3.0, 53.0)
 GT_Y = torch.linspace(3.0, 53.0, 11)

@@ -5,10 +5,11 @@ import json
 import numpy as np
 import pytest
 
+from lanelab.lanes import Lane
 from lanelab.openlane.file_paths import file_path_of, json_path
 from lanelab.openlane.read import read_prediction
 from lanelab.openlane.write import write_prediction
-from lanelab.store import FrameRecord, LaneRecord
+from lanelab.store import FrameRecord
 
 FILE_PATH = "validation/segment-x/155840113564752100.jpg"
 
@@ -16,7 +17,7 @@ FILE_PATH = "validation/segment-x/155840113564752100.jpg"
 def lane(category, visibility):
     y = np.arange(len(visibility), dtype=np.float32) * 10 + 5
     points = np.stack([np.full_like(y, 1.5), y, np.zeros_like(y)], -1)
-    return LaneRecord(-1, category, points, np.array(visibility, dtype=np.float32))
+    return Lane(points, np.array(visibility, dtype=np.float32), category)
 
 
 def test_only_visible_points_are_written_and_short_lanes_left_out(tmp_path):

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lanelab.lightning import Lane
+from lanelab.lanes import Lane
 from lanelab.metrics import evaluate
 from lanelab.openlane.read import read_ground_truth, read_prediction
 from lanelab.openlane.write import ground_truth_json, prediction_json
@@ -33,7 +33,7 @@ def camera(pitch: float, yaw: float, position: tuple[float, float, float]) -> np
 def lanes() -> list[Lane]:
     y = np.linspace(3.0, 80.0, 40)
     return [
-        Lane(np.stack([x0 + 1e-3 * y**2, y, 0.02 * y], axis=1), (y < 60).astype(float), category, 1.0)
+        Lane(np.stack([x0 + 1e-3 * y**2, y, 0.02 * y], axis=1), (y < 60).astype(float), category, score=1.0)
         for x0, category in ((-1.8, 2), (1.7, 1), (5.2, 21))
     ]
 
@@ -55,7 +55,7 @@ def test_predictions_equal_to_the_ground_truth_score_one(tmp_path: Path):
     for directory, content in (
         ("gt", ground_truth_json("clip/1.jpg", lanes(), K, camera(0.05, 0.0, (0.0, 1.8, 1.5)))),
         ("pred", prediction_json("clip/1.jpg", [Lane(l.points[l.visibility > 0], l.visibility[l.visibility > 0],
-                                                        l.category, 0.9) for l in lanes()])),
+                                                        l.category, score=0.9) for l in lanes()])),
     ):  # fmt: skip
         (tmp_path / directory / "clip").mkdir(parents=True)
         (tmp_path / directory / "clip" / "1.json").write_text(json.dumps(content))
@@ -67,7 +67,7 @@ def test_predictions_equal_to_the_ground_truth_score_one(tmp_path: Path):
 
 
 def test_scores_stay_with_their_lanes_when_a_lane_is_left_out():
-    hidden = Lane(lanes()[0].points, np.zeros(40), 2, 0.8)
+    hidden = Lane(lanes()[0].points, np.zeros(40), 2, score=0.8)
     content = prediction_json("clip/1.jpg", [hidden, *lanes()[1:]], scores=[0.8, 0.7, 0.6])
     assert [(line["category"], line["score"]) for line in content["lane_lines"]] == [(1, 0.7), (21, 0.6)]
     assert "score" not in prediction_json("clip/1.jpg", lanes())["lane_lines"][0]

@@ -9,12 +9,12 @@ import pyarrow.parquet as pq
 import pytest
 
 import lanelab.store.clip_file as clip_file
+from lanelab.lanes import Lane
 from lanelab.store import (
     CLIP_SCHEMA,
     ClipEntry,
     ClipStore,
     FrameRecord,
-    LaneRecord,
     Manifest,
     ManifestError,
     SourceEntry,
@@ -26,8 +26,9 @@ from lanelab.store import (
 
 def frame(k: int) -> FrameRecord:
     """Frame k of a test clip: lanes on every other frame (one of a single point), a pose that moves."""
-    lanes = [LaneRecord(10 + j, j, np.arange(3 * (j + 1), dtype=np.float32).reshape(-1, 3) + k,
-                        np.linspace(0, 1, j + 1, dtype=np.float32)) for j in range(3)] if k % 2 == 0 else []
+    lanes = [Lane(np.arange(3 * (j + 1), dtype=np.float32).reshape(-1, 3) + k,
+                  np.linspace(0, 1, j + 1, dtype=np.float32), j, track_id=10 + j)
+             for j in range(3)] if k % 2 == 0 else []
     pose = np.eye(4)
     pose[:3, 3] = (k, 2.0 * k, 0.5)
     return FrameRecord(timestamp_ns=1_000 + 100 * k, image=bytes([k]) * (k + 1), image_encoding="jpeg", width=8,

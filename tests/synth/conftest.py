@@ -19,8 +19,9 @@ import pytest
 from data_ingest.synth import cross_section
 from data_ingest.synth.config import SynthConfig, load_synth_config
 from data_ingest.synth.drive import SyntheticDrive
-from data_ingest.synth.frame import CameraModel, Lane2D, LaneLabel, SynthFrame
+from data_ingest.synth.frame import CameraModel, Lane2D, SynthFrame
 from data_ingest.synth.road import Road
+from lanelab.lanes import Lane
 
 # Small and quick; label_every=3 so that not every frame is labelled.
 SMALL = ["duration_s=2.0", "fps=10", "tf_rate_hz=50", "label_every=3",
@@ -91,15 +92,15 @@ class FakeDrive:
             cv2.line(image, (w // 2 + (k - 1) * w // 3, h), (w // 2 + (k - 1) * 8 + index, h // 2), (255, 255, 255), 2)
         return image
 
-    def _lanes(self, index: int) -> list[LaneLabel]:
+    def _lanes(self, index: int) -> list[Lane]:
         y = np.linspace(3.0, 80.0, 25)
         lanes = []
         for k, offset in enumerate((-5.25, -1.75, 1.75, 5.25)):
             x = offset + 1e-3 * y**2 + 0.01 * index
             z = 0.02 * y + 0.001 * k
             visibility = (y < 60 + 5 * k).astype(np.float32) * np.float32(0.9)
-            lanes.append(LaneLabel(track_id=10 + k, category=(2, 1, 1, 21)[k],
-                                   points=np.stack([x, y, z], axis=-1), visibility=visibility))
+            lanes.append(Lane(track_id=10 + k, category=(2, 1, 1, 21)[k],
+                              points=np.stack([x, y, z], axis=-1), visibility=visibility))
         return lanes
 
     def _lanes2d(self, index: int) -> list[Lane2D]:

@@ -12,8 +12,7 @@ from data_ingest.synth.road import Road
 from data_ingest.synth.traffic import Vehicle
 from lanelab.geometry.camera import in_image, project_lane_points
 from lanelab.geometry.frames import extrinsic_base_to_lane
-
-OPENLANE_CATEGORIES = set(range(13)) | {20, 21}
+from lanelab.lanes import LANE_CATEGORY_IDS
 
 
 def ego_lane_lines(frame):
@@ -73,7 +72,7 @@ def test_labels_are_well_formed_and_track_ids_stable():
         previous = None
         for frame in (drive.frame(i) for i in range(4)):
             for lane in frame.lanes:
-                assert lane.category in OPENLANE_CATEGORIES
+                assert lane.category in LANE_CATEGORY_IDS
                 assert lane.points.shape == (len(lane.visibility), 3) and lane.points.dtype == np.float64
                 assert lane.visibility.dtype == np.float32 and set(np.unique(lane.visibility)) <= {0.0, 1.0}
                 assert (np.diff(lane.points[:, 1]) > 0).all()
@@ -130,7 +129,7 @@ def test_detections_follow_the_visible_near_lanes(clear_cfg, straight_road):
         for detection in frame.lanes2d:
             assert detection.uv.dtype == np.float32 and detection.uv.shape[1] == 2
             assert 0.0 < detection.score <= 1.0
-            assert detection.category in OPENLANE_CATEGORIES
+            assert detection.category in LANE_CATEGORY_IDS
     detections = [d for i in range(10) for d in drive.frame(i).lanes2d]
     assert len(detections) >= 30
     truth_uv = np.concatenate(truth)

@@ -6,8 +6,7 @@ import pytest
 from data_ingest.synth import cross_section
 from data_ingest.synth.cross_section import ExtraLane
 from data_ingest.synth.road import ROAD_STYLES, Road, random_road
-
-OPENLANE_CATEGORIES = set(range(13)) | {20, 21}
+from lanelab.lanes import LANE_CATEGORY_IDS
 
 
 def test_straight_road_runs_east_with_d_to_the_right(straight_road):
@@ -46,7 +45,7 @@ def test_layouts_have_valid_categories_unique_track_ids_and_curbsides():
                cross_section.two_way("rural", 1, 1, 3.6, double_centre=False)]
     for layout in layouts:
         categories = [line.category for line in layout.lines]
-        assert set(categories) <= OPENLANE_CATEGORIES
+        assert set(categories) <= set(LANE_CATEGORY_IDS)
         assert len({line.track_id for line in layout.lines}) == len(layout.lines)
         assert categories[0] == 20 and categories[-1] == 21  # curbsides at the edges, left to right
         offsets = [line.offset for line in layout.lines]

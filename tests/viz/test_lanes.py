@@ -1,24 +1,16 @@
 """Lane pictures put the lanes where the camera model says, in their category colour."""
 
-from dataclasses import dataclass
-
 import numpy as np
 import torch
 
 from lanelab.geometry.camera import project_lane_points
+from lanelab.lanes import Lane
 from lanelab.viz import CATEGORY_COLORS, draw_lanes_on_image, draw_top_view
 from lanelab.viz.lanes import HIDDEN_COLOR
 
 K = np.array([[400.0, 0, 320], [0, 400, 240], [0, 0, 1]])
 # camera 1.5 m above the lane-frame origin, looking along +y (lane frame: x right, y forward, z up)
 T_LANE_CAM = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 1.5], [0, 0, 0, 1]])
-
-
-@dataclass
-class Lane:
-    points: np.ndarray
-    visibility: np.ndarray
-    category: int
 
 
 def straight_lane(x: float, category: int, visible_until: float = 100.0) -> Lane:

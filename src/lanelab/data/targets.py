@@ -14,23 +14,16 @@ out of range, single points) carry nothing to learn.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, Sequence
+from typing import Sequence
 
 import numpy as np
+
+from lanelab.lanes import Lane
 
 # Keys with one row per lane: the collate pads these to a fixed number of lanes.
 LANE_KEYS = ("gt_x", "gt_z", "gt_vis", "gt_category", "gt_track_id")
 
 VISIBLE = 0.5  # interpolated label visibility above which a grid sample counts as visible
-
-
-class Lane(Protocol):
-    """What targets read of a lane (``clip_store.LaneRecord`` is one)."""
-
-    track_id: int
-    category: int
-    points: np.ndarray  # (P, 3) x, y, z in the lane frame, y ascending
-    visibility: np.ndarray  # (P,) in [0, 1]
 
 
 def resample_lane(points: np.ndarray, visibility: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -18,20 +18,12 @@ import numpy as np
 
 from lanelab.atomic_file import atomic_output
 from lanelab.json_files import LaneFileError
+from lanelab.lanes import Lane
 from lanelab.openlane.read import read_ground_truth, read_prediction
 from lanelab.viz import draw_lanes_on_image, draw_top_view
 
 TOP_VIEW_X_RANGE = (-15.0, 15.0)  # metres: the evaluated |x| < 10 and a margin
 _TEXT_COLOR, _SHADOW_COLOR = (255, 255, 255), (0, 0, 0)
-
-
-@dataclass(frozen=True)
-class Lane:
-    """A lane to draw: points (P, 3) in the lane frame, visibility (P,) in [0, 1], category."""
-
-    points: np.ndarray
-    visibility: np.ndarray
-    category: int
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,6 @@
 from lanelab.lightning.legacy import SparseLaneSTPModule
 from lanelab.lightning.module import LaneDetectionModule
 from lanelab.lightning.openlane_writer import OpenLaneWriter
-from lanelab.lightning.predictions import DenseLanes, Lane, PredictionBatch
+from lanelab.lightning.predictions import DenseLanes, PredictionBatch
 
-__all__ = ["DenseLanes", "Lane", "LaneDetectionModule", "OpenLaneWriter", "PredictionBatch", "SparseLaneSTPModule"]
+__all__ = ["DenseLanes", "LaneDetectionModule", "OpenLaneWriter", "PredictionBatch", "SparseLaneSTPModule"]

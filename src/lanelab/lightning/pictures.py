@@ -16,7 +16,7 @@ import numpy as np
 from torch import Tensor
 
 from lanelab.atomic_file import atomic_output
-from lanelab.lightning.predictions import Lane
+from lanelab.lanes import Lane
 from lanelab.viz import draw_lanes_on_image, draw_top_view
 
 

@@ -17,21 +17,11 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from lanelab.lanes import Lane
 from lanelab.metrics.openlane_metric import LaneBatch
 from lanelab.models.api import LaneDetector
 from lanelab.models.categories import BACKGROUND_INDEX, index_to_category
 from lanelab.models.lane_nms import suppress_duplicates
-
-
-@dataclass(frozen=True)
-class Lane:
-    """One 3D lane in the lane frame (a :class:`lanelab.viz.LaneLike`): points (P, 3) x, y, z
-    in metres, visibility (P,) in [0, 1], OpenLane category id, score (1 for ground truth)."""
-
-    points: np.ndarray
-    visibility: np.ndarray
-    category: int
-    score: float
 
 
 @dataclass
@@ -75,7 +65,7 @@ class DenseLanes:
             keep = visibility > self.threshold if visible_only else np.ones(len(points), bool)
             if keep.sum() >= 2:
                 category, score = int(self.category[frame, i]), float(self.score[frame, i])
-                lanes.append(Lane(points[keep], visibility[keep], category, score))
+                lanes.append(Lane(points[keep], visibility[keep], category, score=score))
         return lanes
 
 

@@ -29,14 +29,12 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from lanelab.lanes import LEFT_CURBSIDE, RIGHT_CURBSIDE
 from lanelab.metrics.assignment import min_cost_assignment
 from lanelab.metrics.lane_sampling import overlaps_y_range, prune_to_box, resample_in_y
 from lanelab.openlane.lists import read_test_list
 from lanelab.openlane.read import OpenLaneFormatError, read_ground_truth, read_prediction
 from lanelab.openlane.write import VISIBILITY_THRESHOLD
-
-# Curbside ids (DESIGN.md "Lane categories").
-LEFT_CURBSIDE, RIGHT_CURBSIDE = 20, 21
 
 
 @dataclass(frozen=True)

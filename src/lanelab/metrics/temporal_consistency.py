@@ -28,8 +28,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from lanelab.lanes import NO_TRACK
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig
-from lanelab.openlane.read import NO_TRACK
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,6 @@ from lanelab.models.api import DetectionOutputs, LaneCriterion, LaneDetector
 from lanelab.models.backbone import ResNet
 from lanelab.models.categories import (
     BACKGROUND_INDEX,
-    LANE_CATEGORY_IDS,
     NUM_LANE_CATEGORIES,
     category_to_index,
     index_to_category,
@@ -26,7 +25,6 @@ from lanelab.models.sta_masks import density, sta_masks
 __all__ = [
     "BACKGROUND_INDEX",
     "FPN",
-    "LANE_CATEGORY_IDS",
     "NUM_LANE_CATEGORIES",
     "DecoderLayer",
     "DeformableCrossAttention",

@@ -1,12 +1,14 @@
-"""Lane categories as every detector classifies them: the K OpenLane categories (DESIGN.md, "Lane
-categories") in the order of the classifier's outputs, then the background, at index K."""
+"""Lane categories as every detector classifies them: the K OpenLane categories
+(:data:`lanelab.lanes.LANE_CATEGORY_IDS`) in the order of the classifier's outputs, then the
+background, at index K."""
 
 from __future__ import annotations
 
 import torch
 from torch import Tensor
 
-LANE_CATEGORY_IDS: tuple[int, ...] = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 20, 21)
+from lanelab.lanes import LANE_CATEGORY_IDS
+
 NUM_LANE_CATEGORIES = len(LANE_CATEGORY_IDS)
 BACKGROUND_INDEX = NUM_LANE_CATEGORIES
 

@@ -29,7 +29,6 @@ from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_cam
 
 # The error every OpenLane reader raises (the name users of evaluate() catch).
 OpenLaneFormatError = LaneFileError
-NO_TRACK = -1  # track id of a lane without identity (an OpenLane lane without ``track_id``)
 
 
 @dataclass(frozen=True)

@@ -28,16 +28,14 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from lanelab.atomic_file import atomic_output
+from lanelab.lanes import Lane
 from lanelab.openlane.file_paths import json_path
 from lanelab.openlane.ground_frame import extrinsic_above_origin, lane_to_camera
-
-if TYPE_CHECKING:
-    from lanelab.viz.lanes import LaneLike  # points (P, 3), visibility (P,), category
 
 # Predicted points of visibility at or below this are not part of their lane; 0.5, as the
 # visibility of lanelab's training targets (lanelab.data.targets). The default of the OpenLane
@@ -47,7 +45,7 @@ VISIBILITY_THRESHOLD = 0.5
 
 def prediction_json(
     file_path: str,
-    lanes: Sequence[LaneLike],
+    lanes: Sequence[Lane],
     visibility_threshold: float = VISIBILITY_THRESHOLD,
     scores: Sequence[float] | None = None,
 ) -> dict[str, Any]:
@@ -70,7 +68,7 @@ def prediction_json(
     return {"file_path": file_path, "lane_lines": lane_lines}
 
 
-def ground_truth_json(file_path: str, lanes: Sequence[LaneLike], K: np.ndarray, T_lane_cam: np.ndarray) -> dict[str, Any]:
+def ground_truth_json(file_path: str, lanes: Sequence[Lane], K: np.ndarray, T_lane_cam: np.ndarray) -> dict[str, Any]:
     """A ground-truth file's content for lanes (every point written) in the lane frame, seen
     by a camera with intrinsics K (3, 3) and extrinsic T_lane_cam (4, 4) moved above the
     lane-frame origin."""
@@ -94,7 +92,7 @@ def write_json(path: str | os.PathLike[str], content: dict[str, Any]) -> None:
 def write_prediction(
     pred_dir: str | os.PathLike[str],
     file_path: str,
-    lanes: Sequence[LaneLike],
+    lanes: Sequence[Lane],
     visibility_threshold: float = VISIBILITY_THRESHOLD,
     scores: Sequence[float] | None = None,
 ) -> Path:
@@ -105,7 +103,7 @@ def write_prediction(
 
 
 def write_ground_truth(
-    gt_dir: str | os.PathLike[str], file_path: str, lanes: Sequence[LaneLike], K: np.ndarray, T_lane_cam: np.ndarray
+    gt_dir: str | os.PathLike[str], file_path: str, lanes: Sequence[Lane], K: np.ndarray, T_lane_cam: np.ndarray
 ) -> Path:
     """Write one frame's ground-truth file (:func:`ground_truth_json`) under gt_dir; its path."""
     path = json_path(gt_dir, file_path)

@@ -1,7 +1,7 @@
 """The clip store (DESIGN.md, "Clip store contract"), a stage of its own: no torch, no model.
 
 - :mod:`~lanelab.store.schema`: the format, its Parquet columns and file layout, defined once;
-- :mod:`~lanelab.store.records`: a clip file's rows as :class:`FrameRecord` / :class:`LaneRecord`;
+- :mod:`~lanelab.store.records`: a clip file's rows as :class:`FrameRecord` (lanes: :class:`lanelab.lanes.Lane`);
 - :mod:`~lanelab.store.manifest`: ``manifest.json``, read and written;
 - :mod:`~lanelab.store.clip_file`: clip files written and read (the only code that names columns);
 - :mod:`~lanelab.store.reader`: :class:`ClipStore`, what the datasets read;
@@ -19,6 +19,6 @@ from lanelab.store.manifest import (
     write_manifest,
 )
 from lanelab.store.reader import ClipStore
-from lanelab.store.records import FrameRecord, LaneRecord
+from lanelab.store.records import FrameRecord
 from lanelab.store.schema import CLIP_SCHEMA, SPLITS, clip_path, manifest_path
 from lanelab.store.writer import MADE_BY_OPTION, StoreRefused, StoreWriter

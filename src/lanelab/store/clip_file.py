@@ -16,7 +16,8 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from lanelab.atomic_file import atomic_output
-from lanelab.store.records import FrameRecord, LaneRecord
+from lanelab.lanes import Lane
+from lanelab.store.records import FrameRecord
 from lanelab.store.schema import (
     CLIP_SCHEMA,
     DICTIONARY_COLUMNS,
@@ -145,8 +146,8 @@ def _frames_from_table(table: pa.Table) -> list[FrameRecord]:
     ]
 
 
-def _lanes_from_column(column: pa.ListArray) -> list[list[LaneRecord]]:
-    """The lanes column -> per frame, its LaneRecords (numpy views into one flat buffer)."""
+def _lanes_from_column(column: pa.ListArray) -> list[list[Lane]]:
+    """The lanes column -> per frame, its Lanes (numpy views into one flat buffer)."""
     lanes_per_frame = pc.list_value_length(column).to_numpy()
     structs = pc.list_flatten(column)
     points = pc.struct_field(structs, "points")
@@ -155,7 +156,7 @@ def _lanes_from_column(column: pa.ListArray) -> list[list[LaneRecord]]:
     visibility = np.array(pc.list_flatten(pc.struct_field(structs, "visibility")).to_numpy())
     split_at = np.cumsum(points_per_lane)[:-1]
     lanes = [
-        LaneRecord(int(track_id), int(category), p, v)
+        Lane(p, v, int(category), track_id=int(track_id))
         for track_id, category, p, v in zip(
             pc.struct_field(structs, "track_id").to_pylist(),
             pc.struct_field(structs, "category").to_pylist(),
@@ -179,7 +180,7 @@ def read_window(path: Path, start: int, stop: int) -> list[FrameRecord]:
     return _frames_from_table(table.slice(offset, stop - start))
 
 
-def read_labels(path: Path) -> list[tuple[bool, list[LaneRecord]]]:
+def read_labels(path: Path) -> list[tuple[bool, list[Lane]]]:
     """Every frame's ``labeled`` flag and lanes, in time order, from those two columns alone."""
     table = pq.read_table(path, columns=["labeled", "lanes"])
     lanes = _lanes_from_column(table["lanes"].combine_chunks())

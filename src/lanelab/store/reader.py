@@ -6,9 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
+from lanelab.lanes import Lane
 from lanelab.store import clip_file
 from lanelab.store.manifest import ClipEntry, read_manifest
-from lanelab.store.records import FrameRecord, LaneRecord
+from lanelab.store.records import FrameRecord
 from lanelab.store.schema import SPLITS, clip_path
 
 
@@ -50,7 +51,7 @@ class ClipStore:
             raise IndexError(f"clip {clip_id!r} has {num_frames} frames; cannot read [{start}, {stop})")
         return clip_file.read_window(self.clip_path(clip_id), start, stop)
 
-    def read_labels(self, clip_id: str) -> list[tuple[bool, list[LaneRecord]]]:
+    def read_labels(self, clip_id: str) -> list[tuple[bool, list[Lane]]]:
         """Every frame's ``labeled`` flag and lanes, in time order, reading those two columns
         alone (no images): what statistics over the labels of many frames need."""
         return clip_file.read_labels(self.clip_path(clip_id))

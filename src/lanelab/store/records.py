@@ -1,4 +1,4 @@
-"""A clip file's rows as Python objects: a frame and the lanes labeled in it."""
+"""A clip file's rows as Python objects: a frame and the lanes (:class:`lanelab.lanes.Lane`) labeled in it."""
 
 from __future__ import annotations
 
@@ -6,19 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-@dataclass(eq=False)
-class LaneRecord:
-    """One 3D lane line of a frame.
-
-    points: (P, 3) float32, [x, y, z] in the frame's lane frame, y ascending.
-    visibility: (P,) float32 in [0, 1].
-    """
-
-    track_id: int
-    category: int
-    points: np.ndarray
-    visibility: np.ndarray
+from lanelab.lanes import Lane
 
 
 @dataclass(eq=False)
@@ -39,5 +27,5 @@ class FrameRecord:
     T_lane_cam: np.ndarray
     T_world_lane: np.ndarray
     labeled: bool
-    lanes: list[LaneRecord] = field(default_factory=list)
+    lanes: list[Lane] = field(default_factory=list)
     tags: dict[str, str] = field(default_factory=dict)

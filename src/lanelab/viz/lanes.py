@@ -6,13 +6,14 @@ every picture of lanes in lanelab looks the same.
 
 from __future__ import annotations
 
-from typing import Protocol, Sequence
+from typing import Sequence
 
 import cv2
 import numpy as np
 import torch
 
 from lanelab.geometry.camera import project_lane_points
+from lanelab.lanes import Lane
 
 # BGR per OpenLane category id: white lines white-ish, yellow lines yellow, curbs orange.
 CATEGORY_COLORS: dict[int, tuple[int, int, int]] = {
@@ -35,14 +36,6 @@ CATEGORY_COLORS: dict[int, tuple[int, int, int]] = {
 HIDDEN_COLOR = (90, 90, 255)
 
 
-class LaneLike(Protocol):
-    """Anything with lane-frame points (P, 3), visibility (P,) and an OpenLane category."""
-
-    points: np.ndarray
-    visibility: np.ndarray
-    category: int
-
-
 def _color(category: int) -> tuple[int, int, int]:
     return CATEGORY_COLORS.get(int(category), CATEGORY_COLORS[0])
 
@@ -62,7 +55,7 @@ def _polyline_runs(pixels: np.ndarray, keep: np.ndarray) -> list[np.ndarray]:
 
 def draw_lanes_on_image(
     image: np.ndarray,
-    lanes: Sequence[LaneLike],
+    lanes: Sequence[Lane],
     K: np.ndarray,
     T_lane_cam: np.ndarray,
     thickness: int = 2,
@@ -99,7 +92,7 @@ def draw_lanes_on_image(
 
 
 def draw_top_view(
-    lanes: Sequence[LaneLike],
+    lanes: Sequence[Lane],
     size: tuple[int, int] = (400, 200),
     x_range: tuple[float, float] = (-20.0, 20.0),
     y_range: tuple[float, float] = (0.0, 200.0),
