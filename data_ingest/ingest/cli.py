@@ -1,10 +1,13 @@
 """``lanelab-ingest``: MCAP drive logs -> one clip store.
 
     lanelab-ingest input=PATH_OR_GLOB output=STORE_DIR [topics.image=... frames.world=... workers=N ...]
+    lanelab-ingest output=STORE_DIR verify=true
 
 Options are Hydra overrides of ``conf/ingest.yaml`` (Hydra rejects unknown keys and wrong
 types by name). Exits with status 1 when a log failed (the others are ingested all the
-same) and 2 when the options, the input or the output cannot work.
+same) or, with ``verify=true``, a clip file is missing or damaged; 2 when the options, the
+input or the output cannot work (another run writing the store included); 130 on Ctrl-C,
+with one line saying how many logs were recorded.
 """
 
 from __future__ import annotations
@@ -22,13 +25,19 @@ register_schema(SCHEMA_NAME, IngestConfig)
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="ingest")
 def _run(cfg: DictConfig) -> None:
-    from data_ingest.ingest.ingest import FAILED, ingest  # heavy imports only once the options are good
+    from data_ingest.ingest.ingest import FAILED, ingest, verify  # heavy imports only once the options are good
 
     try:
-        results = ingest(validate(OmegaConf.to_object(cfg)))
+        options = validate(OmegaConf.to_object(cfg))
+        if options.verify:
+            sys.exit(1 if verify(options.output) else 0)
+        results = ingest(options)
     except ConfigError as err:
         print(f"lanelab-ingest: {err}", file=sys.stderr)
         sys.exit(2)
+    except KeyboardInterrupt as err:  # IngestInterrupted says what was recorded
+        print(f"lanelab-ingest: {str(err) or 'interrupted before any log was recorded'}", file=sys.stderr)
+        sys.exit(130)
     if any(result.status == FAILED for result in results):
         sys.exit(1)
 

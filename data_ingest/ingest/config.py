@@ -48,6 +48,7 @@ class IngestConfig:
     output: str = MISSING
     workers: int = MISSING
     overwrite: bool = MISSING
+    verify: bool = MISSING
     topics: TopicsConfig = field(default_factory=TopicsConfig)
     frames: FramesConfig = field(default_factory=FramesConfig)
     tolerances: TolerancesConfig = field(default_factory=TolerancesConfig)
@@ -56,7 +57,7 @@ class IngestConfig:
 
 
 def store_options(cfg: IngestConfig) -> dict[str, Any]:
-    """The options that shape a store's contents (recorded in its manifest); not input, output, workers."""
+    """The options that shape a store's contents (recorded in its manifest); not input, output, workers, verify."""
     return {key: asdict(getattr(cfg, key)) for key in ("topics", "frames", "tolerances", "clips", "split")}
 
 

@@ -7,7 +7,11 @@ complete the frames (:mod:`assemble`), cut and write clips (:mod:`clips`). The s
 updated as every writing tool updates one (:class:`~lanelab.store.StoreWriter`): after each
 log the manifest is rewritten atomically, so an interrupted run keeps every finished log and
 the next run resumes with the rest. A log that fails is reported, the clip files it wrote
-are deleted, and the others go on.
+are deleted, and the others go on. The run holds the store's writers' lock, so a second
+run into the same store is refused. Ctrl-C records the logs already finished (those of
+the workers too), kills the workers (:mod:`workers`) and raises :class:`IngestInterrupted`
+saying how many logs were recorded. :func:`verify` checks the store's clip files against
+the sha256 the manifest records for them.
 
 A log is known by its name (file stem). Its clip ids are ``<name>_<fingerprint>_<k>``
 where the fingerprint hashes the log's sha256 and the store options: re-ingesting a
@@ -20,10 +24,9 @@ from __future__ import annotations
 import glob
 import hashlib
 import json
-import multiprocessing as mp
 import time
 from collections import Counter
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, ThreadPoolExecutor, wait
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterator
@@ -34,13 +37,25 @@ from tqdm import tqdm
 from data_ingest.ingest.assemble import PlannedFrame, assemble
 from data_ingest.ingest.clips import cut, draw_split, log_name, split_key, subsample
 from data_ingest.ingest.config import IngestConfig, store_options
-from data_ingest.ingest.errors import LogError
+from data_ingest.ingest.errors import IngestInterrupted, LogError
 from data_ingest.ingest.mcap_reader import ReadReport
 from data_ingest.ingest.scan import scan_log
 from data_ingest.ingest.spill import Spill
 from data_ingest.ingest.summary import print_summary
+from data_ingest.ingest.workers import in_workers
 from lanelab.config_checks import ConfigError
-from lanelab.store import ClipEntry, ManifestError, SourceEntry, StoreRefused, StoreWriter, write_clip
+from lanelab.store import (
+    ClipEntry,
+    ManifestError,
+    SourceEntry,
+    StoreBusy,
+    StoreRefused,
+    StoreWriter,
+    damaged_clips,
+    file_sha256,
+    read_manifest,
+    write_clip,
+)
 
 INGESTED, UNCHANGED, FAILED = "ingested", "unchanged", "failed"
 
@@ -74,14 +89,6 @@ def find_logs(input_: str) -> list[Path]:
     if path.is_dir():
         return sorted(path.rglob("*.mcap"))
     return sorted(Path(match) for match in glob.glob(input_, recursive=True) if Path(match).is_file())
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        while block := handle.read(1 << 22):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def fingerprint(sha256: str, options: dict) -> str:
@@ -158,9 +165,9 @@ def _write_clips(path: Path, frames: list[PlannedFrame], spill: Spill, sha256: s
     stamps = np.array([frame.record.timestamp_ns for frame in frames], dtype=np.int64)
     for index, part in enumerate(cut(stamps, cfg.clips.gap_s, cfg.clips.max_length_s)):
         clip_id = f"{prefix}_{index:03d}"
-        write_clip(cfg.output, clip_id, _with_images(frames[part], spill))
+        clip_sha256 = file_sha256(write_clip(cfg.output, clip_id, _with_images(frames[part], spill)))
         written.append(ClipEntry(clip_id, str(path), draw_split(split_key(name, index, cfg.split), cfg.split),
-                                 len(frames[part]), int(stamps[part][0]), int(stamps[part][-1])))
+                                 len(frames[part]), int(stamps[part][0]), int(stamps[part][-1]), clip_sha256))
 
 
 def _with_images(frames: list[PlannedFrame], spill: Spill) -> Iterator:
@@ -173,7 +180,8 @@ def _with_images(frames: list[PlannedFrame], spill: Spill) -> Iterator:
 def ingest(cfg: IngestConfig) -> list[LogResult]:
     """Ingest ``cfg.input`` into the store ``cfg.output``; print a progress bar and a closing summary.
 
-    Raises ConfigError when there is no log or the store cannot take these options.
+    Raises ConfigError when there is no log or the store cannot take these options (or
+    another run is writing it), IngestInterrupted on Ctrl-C once the finished logs are recorded.
     """
     logs = find_logs(cfg.input)
     if not logs:
@@ -182,8 +190,13 @@ def ingest(cfg: IngestConfig) -> list[LogResult]:
         writer = StoreWriter(cfg.output, store_options(cfg), source_name, overwrite=cfg.overwrite)
     except ManifestError as err:
         raise ConfigError(f"output={cfg.output!r} holds a manifest that cannot be read: {err}") from None
-    except StoreRefused as err:
+    except (StoreRefused, StoreBusy) as err:
         raise ConfigError(str(err)) from None
+    with writer:
+        return _ingest_logs(logs, cfg, writer)
+
+
+def _ingest_logs(logs: list[Path], cfg: IngestConfig, writer: StoreWriter) -> list[LogResult]:
     start = time.perf_counter()
     results: dict[str, LogResult] = {}
     todo: list[tuple[Path, str | None]] = []
@@ -198,14 +211,20 @@ def ingest(cfg: IngestConfig) -> list[LogResult]:
         todo.append((path, writer.kept_sha256(str(path))))
 
     total = sum(path.stat().st_size for path, _ in todo)
+    recorded = 0
     with tqdm(total=total, unit="B", unit_scale=True, desc="lanelab-ingest", dynamic_ncols=True,
               disable=None) as bar:
-        for result in _run(todo, cfg, bar):
-            if result.status == INGESTED:
-                writer.commit(SourceEntry(result.path, result.sha256, result.num_frames), result.clips)
-            elif result.status == FAILED:
-                writer.discard(clip.clip_id for clip in result.clips)
-            results[result.path] = result
+        try:
+            for result in _run(todo, cfg, bar):
+                if result.status == INGESTED:
+                    writer.commit(SourceEntry(result.path, result.sha256, result.num_frames), result.clips)
+                    recorded += 1
+                elif result.status == FAILED:
+                    writer.discard(clip.clip_id for clip in result.clips)
+                results[result.path] = result
+        except KeyboardInterrupt:
+            raise IngestInterrupted(f"interrupted: {recorded} log(s) ingested into {cfg.output} by this run are "
+                                    "recorded; run the same command again to resume with the rest") from None
     in_order = [results[str(path)] for path in logs]
     print_summary(in_order, writer.manifest, time.perf_counter() - start)
     return in_order
@@ -217,29 +236,20 @@ def _run(todo: list[tuple[Path, str | None]], cfg: IngestConfig, bar: tqdm) -> I
         for path, known in todo:
             yield ingest_log(path, known, cfg, bar.update)
         return
-    ctx = mp.get_context("fork")
-    counter = ctx.Value("q", 0)
-    with ProcessPoolExecutor(min(cfg.workers, len(todo)), mp_context=ctx, initializer=_init_worker,
-                             initargs=(counter,)) as pool:
-        pending = {pool.submit(_worker, path, known, cfg) for path, known in todo}
-        while pending:
-            done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
-            bar.update(counter.value - bar.n)
-            yield from (future.result() for future in done)
+    jobs = [(path, known, cfg) for path, known in todo]
+    yield from in_workers(ingest_log, jobs, min(cfg.workers, len(todo)), lambda n: bar.update(n - bar.n))
 
 
-_counter = None  # bytes read, shared with the worker processes
-
-
-def _init_worker(counter) -> None:
-    global _counter
-    _counter = counter
-
-
-def _count_bytes(n: int) -> None:
-    with _counter.get_lock():
-        _counter.value += n
-
-
-def _worker(path: Path, known: str | None, cfg: IngestConfig) -> LogResult:
-    return ingest_log(path, known, cfg, _count_bytes)
+def verify(store: str) -> int:
+    """Check every clip file of ``store`` against its manifest: print a line per missing or damaged
+    clip, then a closing line; return how many are. Raises ConfigError when there is no store."""
+    try:
+        num_clips = len(read_manifest(store).clips)
+    except ManifestError as err:
+        raise ConfigError(str(err)) from None
+    faults = damaged_clips(store)
+    for line in faults:
+        print(f"lanelab-ingest: {line}")
+    print(f"lanelab-ingest: {store}: {len(faults)} of {num_clips} clip(s) missing or damaged"
+          + ("; ingest their logs again to re-write them" if faults else ""))
+    return len(faults)

@@ -48,8 +48,10 @@ from lanelab.store import (
     ClipEntry,
     FrameRecord,
     SourceEntry,
+    StoreBusy,
     StoreRefused,
     StoreWriter,
+    file_sha256,
     write_clip,
 )
 from lanelab.store.image_codec import compressed_format, compressed_size
@@ -76,30 +78,32 @@ class SegmentResult:
 def adapt(cfg: OpenLaneAdapterConfig) -> list[SegmentResult]:
     """Make or update the store ``cfg.output``; one result per segment found, in order.
 
-    Raises ConfigError when the output is a store made by another tool, LaneFileError when a
-    scenario list or scene.json cannot be read; a bad segment only fails itself.
+    Raises ConfigError when the output is a store made by another tool or being written by
+    another process, LaneFileError when a scenario list or scene.json cannot be read; a bad
+    segment only fails itself.
     """
     case_lists = read_scenario_lists(cfg.scenario_lists) if cfg.scenario_lists else {}
     scenes = _read_scenes(cfg.scene_tags) if cfg.scene_tags else {}
     try:
         writer = StoreWriter(cfg.output, {MADE_BY_OPTION: MADE_BY, "lane_frame": LANE_FRAME}, _segment_of,
                              marks=[WITHOUT_POSE])
-    except StoreRefused as err:
+    except (StoreRefused, StoreBusy) as err:
         raise ConfigError(str(err)) from None
     results = []
-    for folder, split in cfg.splits.items():
-        split_dir = Path(cfg.annotations) / folder
-        if not split_dir.is_dir():
-            print(f"lanelab-openlane: no split folder {split_dir}, skipped")
-            continue
-        for segment_dir in sorted(path for path in split_dir.iterdir() if path.is_dir()):
-            segment = segment_dir.name
-            scene = scenes.get(segment) or scenes.get(segment.removesuffix("_with_camera_labels"), {})
-            try:
-                result = _adapt_segment(segment_dir, split, cfg, writer, case_lists, scene)
-            except ValueError as err:  # LaneFileError names the file; the store's own checks name the clip
-                result = SegmentResult(segment, FAILED, error=str(err))
-            results.append(result)
+    with writer:
+        for folder, split in cfg.splits.items():
+            split_dir = Path(cfg.annotations) / folder
+            if not split_dir.is_dir():
+                print(f"lanelab-openlane: no split folder {split_dir}, skipped")
+                continue
+            for segment_dir in sorted(path for path in split_dir.iterdir() if path.is_dir()):
+                segment = segment_dir.name
+                scene = scenes.get(segment) or scenes.get(segment.removesuffix("_with_camera_labels"), {})
+                try:
+                    result = _adapt_segment(segment_dir, split, cfg, writer, case_lists, scene)
+                except ValueError as err:  # LaneFileError names the file; the store's own checks name the clip
+                    result = SegmentResult(segment, FAILED, error=str(err))
+                results.append(result)
     return results
 
 
@@ -124,8 +128,9 @@ def _adapt_segment(
 
     annotations = [read_annotation(path) for path in paths]
     has_pose = all(a.T_world_lane is not None for a in annotations)
-    write_clip(cfg.output, segment, _frames(annotations, tags, Path(cfg.images), has_pose))
-    clip = ClipEntry(segment, source, split, len(paths), annotations[0].timestamp_ns, annotations[-1].timestamp_ns)
+    path = write_clip(cfg.output, segment, _frames(annotations, tags, Path(cfg.images), has_pose))
+    clip = ClipEntry(segment, source, split, len(paths), annotations[0].timestamp_ns, annotations[-1].timestamp_ns,
+                     file_sha256(path))
     writer.commit(SourceEntry(source, sha256, len(paths)), [clip], marks=[] if has_pose else [WITHOUT_POSE])
     return SegmentResult(segment, WRITTEN, len(paths), has_pose)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -13,8 +14,11 @@ from lanelab.store import (
     FrameRecord,
     ManifestError,
     SourceEntry,
+    StoreBusy,
     StoreRefused,
     StoreWriter,
+    damaged_clips,
+    file_sha256,
     read_manifest,
     write_clip,
 )
@@ -30,10 +34,14 @@ def open_writer(root: Path, options: dict = OPTIONS, **kwargs) -> StoreWriter:
     return StoreWriter(root, options, name_of, **kwargs)
 
 
+def two_frames() -> list[FrameRecord]:
+    """Two frames at 10 and 20 ns."""
+    return [FrameRecord(t, b"x", "jpeg", 4, 2, np.eye(3), np.eye(4), np.eye(4), False) for t in (10, 20)]
+
+
 def write(root: Path, clip_id: str, source: str, split: str = "train") -> ClipEntry:
-    """Write a two-frame clip file; its manifest entry."""
-    frames = [FrameRecord(t, b"x", "jpeg", 4, 2, np.eye(3), np.eye(4), np.eye(4), False) for t in (10, 20)]
-    write_clip(root, clip_id, frames)
+    """Write a two-frame clip file; its manifest entry (no sha256 recorded)."""
+    write_clip(root, clip_id, two_frames())
     return ClipEntry(clip_id, source, split, 2, 10, 20)
 
 
@@ -66,6 +74,7 @@ def test_a_source_is_kept_only_whole_unchanged_and_not_overwritten(tmp_path):
     assert writer.kept_sha256("logs/a.mcap", "val") == "a1"
     assert writer.kept_sha256("logs/a.mcap", "train") is None
     assert writer.kept_sha256("logs/b.mcap") is None
+    writer.close()
     assert open_writer(tmp_path, overwrite=True).kept_sha256("logs/a.mcap") is None
     (tmp_path / "clips" / "a_1.parquet").unlink()
     assert open_writer(tmp_path).kept_sha256("logs/a.mcap") is None
@@ -88,6 +97,7 @@ def test_marks_follow_the_clips_they_were_given_to(tmp_path):
     commit(writer, "a", "a1", "a_0", marks=["no_pose"])
     commit(writer, "b", "b1", "b_0", marks=["no_pose"])
     assert read_manifest(tmp_path).options == {**OPTIONS, "no_pose": ["a_0", "b_0"]}
+    writer.close()
     writer = open_writer(tmp_path, marks=["no_pose"])  # marks are not options: the store opens
     commit(writer, "a", "a2", "a_0")
     assert read_manifest(tmp_path).options["no_pose"] == ["b_0"]
@@ -124,3 +134,42 @@ def test_a_garbled_manifest_stops_the_writer_and_stays(tmp_path):
     with pytest.raises(ManifestError, match="cannot read the manifest"):
         open_writer(tmp_path)
     assert (tmp_path / "manifest.json").read_text() == "{not json"
+
+
+def test_a_second_writer_is_refused_until_the_first_closes(tmp_path):
+    writer = open_writer(tmp_path)
+    with pytest.raises(StoreBusy, match=rf"{tmp_path} is being written by another writer \(pid {os.getpid()} on "):
+        open_writer(tmp_path)
+    writer.close()
+    with open_writer(tmp_path) as again:
+        commit(again, "a", "a1", "a_0")
+    assert [c.clip_id for c in read_manifest(tmp_path).clips] == ["a_0"]
+
+
+def test_a_clip_that_no_longer_matches_its_sha256_is_not_kept(tmp_path):
+    with open_writer(tmp_path) as writer:
+        path = write_clip(tmp_path, "a_0", two_frames())
+        writer.commit(SourceEntry("a", "a1", 2), [ClipEntry("a_0", "a", "train", 2, 10, 20, file_sha256(path))])
+        assert writer.kept_sha256("a") == "a1"
+        data = bytearray(path.read_bytes())
+        data[len(data) // 2] ^= 0xFF
+        path.write_bytes(bytes(data))
+        assert writer.kept_sha256("a") is None
+    assert damaged_clips(tmp_path) == [f"{path}: clip 'a_0' damaged: its sha256 is not the one the manifest records"]
+
+
+def test_a_manifest_without_clip_hashes_still_reads(tmp_path):
+    with open_writer(tmp_path) as writer:
+        commit(writer, "a", "a1", "a_0")
+    assert "sha256" not in (tmp_path / "manifest.json").read_text().split('"clips"')[1]
+    assert read_manifest(tmp_path).clips[0].sha256 is None
+    with open_writer(tmp_path) as writer:
+        assert writer.kept_sha256("a") == "a1"  # not verified, not refused
+    assert damaged_clips(tmp_path) == []
+
+
+def test_opening_deletes_the_half_written_clips_of_a_killed_run(tmp_path):
+    (tmp_path / "clips").mkdir()
+    (tmp_path / "clips" / ".a_0.parquet.partial").write_bytes(b"half")
+    open_writer(tmp_path).close()
+    assert list((tmp_path / "clips").iterdir()) == []

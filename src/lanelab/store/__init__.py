@@ -6,10 +6,14 @@
 - :mod:`~lanelab.store.clip_file`: clip files written and read (the only code that names columns);
 - :mod:`~lanelab.store.reader`: :class:`ClipStore`, what the datasets read;
 - :mod:`~lanelab.store.writer`: :class:`StoreWriter`, the one update policy of the writing tools;
+- :mod:`~lanelab.store.lock`: the writers' lock, one writing process at a time;
+- :mod:`~lanelab.store.integrity`: clip files checked against the sha256 the manifest records;
 - :mod:`~lanelab.store.image_codec`: the stored images' encodings, decoded to RGB.
 """
 
-from lanelab.store.clip_file import write_clip
+from lanelab.store.clip_file import ClipFileError, write_clip
+from lanelab.store.integrity import damaged_clips, file_sha256
+from lanelab.store.lock import StoreBusy
 from lanelab.store.manifest import (
     ClipEntry,
     Manifest,

@@ -1,12 +1,15 @@
 """Clip files: frames -> Parquet (:data:`~lanelab.store.schema.CLIP_SCHEMA`) and back.
 
 The only code that knows the clip file's columns by name. Every write is atomic
-(:func:`lanelab.atomic_file.atomic_output`); a read opens the file once and reads only the
-row groups or columns it needs.
+(:func:`lanelab.atomic_file.atomic_output`) and gives each Parquet page a CRC checksum; a
+read opens the file once, reads only the row groups or columns it needs and verifies their
+checksums, so a damaged file raises :class:`ClipFileError` naming it instead of giving
+wrong values.
 """
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
@@ -29,6 +32,21 @@ from lanelab.store.schema import (
 )
 
 
+class ClipFileError(ValueError):
+    """A clip file that cannot be read: damaged (a page checksum or its structure) or unreadable; names the file."""
+
+
+@contextlib.contextmanager
+def _reading(path: Path) -> Iterator[None]:
+    """Turn pyarrow's errors while reading ``path`` into a :class:`ClipFileError` naming it."""
+    try:
+        yield
+    except FileNotFoundError:
+        raise
+    except (OSError, pa.ArrowException) as err:
+        raise ClipFileError(f"{path}: damaged clip file ({type(err).__name__}: {err})") from None
+
+
 def write_clip(store_dir: str | Path, clip_id: str, frames: Iterable[FrameRecord]) -> Path:
     """Write the frames of a clip (strictly increasing timestamps) atomically; return the file's path.
 
@@ -40,7 +58,8 @@ def write_clip(store_dir: str | Path, clip_id: str, frames: Iterable[FrameRecord
     last_stamp = None
     with atomic_output(path) as tmp:
         with pq.ParquetWriter(tmp, CLIP_SCHEMA, compression="zstd", compression_level=ZSTD_LEVEL,
-                              write_statistics=STATISTICS_COLUMNS, use_dictionary=DICTIONARY_COLUMNS) as writer:
+                              write_statistics=STATISTICS_COLUMNS, use_dictionary=DICTIONARY_COLUMNS,
+                              write_page_checksum=True) as writer:
             for batch in _batches(frames, ROW_GROUP_FRAMES):
                 for frame in batch:
                     if last_stamp is not None and frame.timestamp_ns <= last_stamp:
@@ -170,8 +189,8 @@ def _lanes_from_column(column: pa.ListArray) -> list[list[Lane]]:
 
 def read_window(path: Path, start: int, stop: int) -> list[FrameRecord]:
     """Frames ``start`` to ``stop - 1`` of the clip file at ``path``; one file open, only the row groups needed."""
-    with open(path, "rb") as handle:
-        parquet = pq.ParquetFile(handle)
+    with open(path, "rb") as handle, _reading(path):
+        parquet = pq.ParquetFile(handle, page_checksum_verification=True)
         ends = np.cumsum([parquet.metadata.row_group(i).num_rows for i in range(parquet.num_row_groups)])
         first = int(np.searchsorted(ends, start, side="right"))
         last = int(np.searchsorted(ends, stop - 1, side="right"))
@@ -182,18 +201,27 @@ def read_window(path: Path, start: int, stop: int) -> list[FrameRecord]:
 
 def read_labels(path: Path) -> list[tuple[bool, list[Lane]]]:
     """Every frame's ``labeled`` flag and lanes, in time order, from those two columns alone."""
-    table = pq.read_table(path, columns=["labeled", "lanes"])
+    with _reading(path):
+        table = pq.read_table(path, columns=["labeled", "lanes"], page_checksum_verification=True)
     lanes = _lanes_from_column(table["lanes"].combine_chunks())
     return list(zip(table["labeled"].to_pylist(), lanes))
 
 
 def read_timeline(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Every frame's ``timestamp_ns`` (N,) int64 and ``labeled`` flag (N,) bool, from those two columns alone."""
-    table = pq.read_table(path, columns=["labeled", "timestamp_ns"])
+    with _reading(path):
+        table = pq.read_table(path, columns=["labeled", "timestamp_ns"], page_checksum_verification=True)
     return table["timestamp_ns"].to_numpy(), table["labeled"].to_numpy()
 
 
 def read_tags(path: Path) -> list[tuple[int, dict[str, str]]]:
     """Every frame's ``timestamp_ns`` and tags, in time order, from those two columns alone."""
-    table = pq.read_table(path, columns=["timestamp_ns", "tags"]).to_pydict()
+    with _reading(path):
+        table = pq.read_table(path, columns=["timestamp_ns", "tags"], page_checksum_verification=True).to_pydict()
     return [(timestamp, dict(tags or [])) for timestamp, tags in zip(table["timestamp_ns"], table["tags"])]
+
+
+def check_readable(path: Path) -> None:
+    """Read every page of the clip file at ``path``, verifying its checksums; :class:`ClipFileError` if damaged."""
+    with _reading(path):
+        pq.read_table(path, page_checksum_verification=True)

@@ -30,7 +30,11 @@ class SourceEntry:
 
 @dataclass(frozen=True)
 class ClipEntry:
-    """A clip of a store; ``source`` is the ``path`` of its :class:`SourceEntry`."""
+    """A clip of a store; ``source`` is the ``path`` of its :class:`SourceEntry`.
+
+    ``sha256``: of the clip file as written; None (stores written before it was recorded,
+    or another writer) means the file is not verified by hash.
+    """
 
     clip_id: str
     source: str
@@ -38,6 +42,7 @@ class ClipEntry:
     num_frames: int
     first_timestamp_ns: int
     last_timestamp_ns: int
+    sha256: str | None = None
 
 
 @dataclass
@@ -85,7 +90,8 @@ def write_manifest(store_dir: str | Path, manifest: Manifest) -> Path:
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "sources": [asdict(entry) for entry in manifest.sources],
-        "clips": [asdict(entry) for entry in manifest.clips],
+        "clips": [{key: value for key, value in asdict(entry).items() if value is not None}
+                  for entry in manifest.clips],
         "options": manifest.options,
     }
     with atomic_output(path) as tmp:

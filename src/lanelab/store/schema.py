@@ -2,7 +2,7 @@
 
 A store is a directory that pyarrow, DuckDB or Spark read without lanelab::
 
-    <store>/manifest.json            format, version, source logs (sha256), clips and their splits
+    <store>/manifest.json            format, version, source logs (sha256), clips (splits, file sha256)
     <store>/clips/<clip_id>.parquet  one row per frame, in time order (:data:`CLIP_SCHEMA`)
 
 Clip files are written in row groups of :data:`ROW_GROUP_FRAMES` frames, so reading a

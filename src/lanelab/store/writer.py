@@ -3,6 +3,12 @@
 A :class:`StoreWriter` holds a store for one run of a writing tool (``lanelab-ingest``,
 ``lanelab-openlane``):
 
+- **one writer at a time**: it holds the store's lock (:mod:`~lanelab.store.lock`) until
+  :meth:`StoreWriter.close` (or the end of its ``with`` block, or of its process); a second
+  writer raises :class:`~lanelab.store.lock.StoreBusy` naming the process that holds it.
+  Holding it, the writer deletes the half-written clip files (``.*.partial``) that a killed
+  run left behind: no other writer can be writing them.
+
 - **open or refuse**: a new store takes the tool's ``options``. An existing store's manifest
   is read (a garbled one raises :class:`~lanelab.store.manifest.ManifestError` and nothing is
   overwritten). A store that another tool made (``options["made_by"]``) is always refused;
@@ -10,7 +16,9 @@ A :class:`StoreWriter` holds a store for one run of a writing tool (``lanelab-in
   and no source counts as unchanged.
 - **skip unchanged**: a source is known by its name (``source_name(path)``);
   :meth:`StoreWriter.kept_sha256` gives the sha256 of the version the store holds, when all
-  of its clip files are there, so that the tool keeps a source whose sha256 is the same.
+  of its clip files are there and match the sha256 the manifest records for them
+  (:func:`~lanelab.store.integrity.clip_fault`), so that the tool keeps a source whose
+  sha256 is the same and re-writes one whose clips were damaged.
 - **replace and commit**: the tool writes a source's clip files
   (:func:`~lanelab.store.clip_file.write_clip`, each atomically, in any process), then
   :meth:`StoreWriter.commit` puts the source and its clips in the manifest in place of the
@@ -24,10 +32,13 @@ The manifest lists sources by path and clips by id, whatever order they were wri
 from __future__ import annotations
 
 from pathlib import Path
+from types import TracebackType
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
+from lanelab.store.integrity import clip_fault
+from lanelab.store.lock import lock_store
 from lanelab.store.manifest import ClipEntry, Manifest, SourceEntry, read_manifest, write_manifest
-from lanelab.store.schema import clip_path, manifest_path
+from lanelab.store.schema import CLIPS_DIR, clip_path, manifest_path
 
 MADE_BY_OPTION = "made_by"  # names the tool that made a store (lanelab-ingest records none)
 
@@ -59,7 +70,25 @@ class StoreWriter:
         self._source_name = source_name
         self._overwrite = overwrite
         self._marks = tuple(marks)
-        self.manifest = self._open(dict(options))
+        self._lock = lock_store(self.root)
+        for leftover in (self.root / CLIPS_DIR).glob(".*.partial"):
+            leftover.unlink(missing_ok=True)
+        try:
+            self.manifest = self._open(dict(options))
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Release the store's lock; the writer commits nothing more."""
+        self._lock.close()
+
+    def __enter__(self) -> StoreWriter:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.close()
 
     def _open(self, options: dict[str, Any]) -> Manifest:
         if not manifest_path(self.root).exists():
@@ -83,14 +112,15 @@ class StoreWriter:
 
     def kept_sha256(self, path: str, split: str | None = None) -> str | None:
         """The sha256 of the store's version of the source at ``path`` (known by its name), if
-        its clips may stay: every clip file of it is there, all in ``split`` when one is given,
-        and the store is not being overwritten. None when the source must be written."""
+        its clips may stay: every clip file of it is there as written (its sha256, when
+        recorded), all in ``split`` when one is given, and the store is not being
+        overwritten. None when the source must be written."""
         name = self._source_name(path)
         source = next((s for s in self.manifest.sources if self._source_name(s.path) == name), None)
         if source is None or self._overwrite:
             return None
         clips = [clip for clip in self.manifest.clips if clip.source == source.path]
-        whole = all(clip_path(self.root, clip.clip_id).exists() and split in (None, clip.split) for clip in clips)
+        whole = all(split in (None, clip.split) and clip_fault(self.root, clip) is None for clip in clips)
         return source.sha256 if whole else None
 
     def commit(self, source: SourceEntry, clips: Sequence[ClipEntry], marks: Iterable[str] = ()) -> None:
