@@ -10,7 +10,8 @@ For the images of a log, in stamp order (all lookups vectorised over the log):
   lane frame: ``p_lane = T_world_lane(t_image)^-1 · T_world_F(t_label) · p``;
 - tags: the last tags message stamped at most ``tolerances.tags_s`` after the image.
 
-An image that cannot be completed is dropped with a reason; images without a label stay as
+An image that cannot be completed is dropped with a reason, as is one whose K, pose, extrinsic
+or matched label (lane points, visibility) holds NaN or inf; images without a label stay as
 unlabeled frames. A log whose TF tree never connects the world, ego and camera frames is
 unusable (:class:`LogError`).
 """
@@ -73,9 +74,13 @@ def assemble(path: Path, contents: LogContents, cfg: IngestConfig) -> Assembled:
     T_lane_cam = _T_LANE_BASE @ T_base_cam
 
     kept = np.flatnonzero(keep.mask)
-    lanes = _labels(contents, stamps[kept], T_world_lane[kept], cfg, out.notes)
+    lanes, non_finite = _labels(contents, stamps[kept], T_world_lane[kept], cfg, out.notes)
+    keep.drop(np.isin(np.arange(len(images)), kept[non_finite]),
+              f"label on {cfg.topics.lanes} has NaN or inf lane points or visibility")
     tags = _tags(contents, stamps[kept], cfg)
     for n, i in enumerate(kept):
+        if not keep.mask[i]:
+            continue
         image = images[i]
         record = FrameRecord(
             timestamp_ns=int(image.stamp_ns), image=b"", image_encoding=image.encoding,
@@ -176,13 +181,15 @@ def _lookup(tf: TfTree, target: str, source: str, stamps: np.ndarray, keep: _Kee
 
 
 def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray, cfg: IngestConfig,
-            notes: list[str]) -> dict[int, list[Lane]]:
-    """Lanes of the frames (by index into ``stamps``) that a label matches; problems go to ``notes``."""
+            notes: list[str]) -> tuple[dict[int, list[Lane]], np.ndarray]:
+    """Lanes of the frames (by index into ``stamps``) that a label matches, and the frames whose
+    label holds NaN or inf points or visibility (int array, to drop); other problems go to ``notes``."""
     topic, world = cfg.topics.lanes, cfg.frames.world
+    non_finite: list[int] = []
     if not contents.labels or not len(stamps):
         if contents.labels:
             notes.append(f"{topic}: {len(contents.labels)} labels, but no frame to match them")
-        return {}
+        return {}, np.array(non_finite, dtype=np.int64)
     label_stamps = np.array([label.stamp_ns for label in contents.labels], dtype=np.int64)
     frame = _nearest(stamps, label_stamps)
     near = np.abs(stamps[frame] - label_stamps) <= cfg.tolerances.label_s * 1e9
@@ -213,18 +220,21 @@ def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray,
         frames = [f for f, _ in pairs]
         T_lane_label = invert(torch.from_numpy(T_world_lane[frames])).numpy() @ T_world_label
         for (f, k), T, ok in zip(pairs, T_lane_label, valid):
-            if ok:
-                lanes[f] = _lanes_in_lane_frame(contents.labels[k], T)
-    return lanes
+            if not ok:
+                continue
+            label = contents.labels[k]
+            if np.isfinite(label.points).all() and np.isfinite(label.visibility).all():
+                lanes[f] = _lanes_in_lane_frame(label, T)
+            else:
+                non_finite.append(f)
+    return lanes, np.array(non_finite, dtype=np.int64)
 
 
 def _lanes_in_lane_frame(label: LanesMsg, T_lane_label: np.ndarray) -> list[Lane]:
-    """A label's lanes mapped by T_lane_label (4, 4): float32 points sorted by y, non-finite points dropped."""
+    """A label's lanes (all points finite) mapped by T_lane_label (4, 4): float32 points sorted by y."""
     lane = np.repeat(np.arange(len(label.num_points)), label.num_points)  # (P,) lane of each point
     points = label.points @ T_lane_label[:3, :3].T + T_lane_label[:3, 3]
-    finite = np.isfinite(points).all(axis=1) & np.isfinite(label.visibility)
-    order = np.flatnonzero(finite)
-    order = order[np.lexsort((points[order, 1], lane[order]))]  # by lane, then y
+    order = np.lexsort((points[:, 1], lane))  # by lane, then y
     counts = np.bincount(lane[order], minlength=len(label.num_points))
     split_at = np.cumsum(counts)[:-1]
     return [Lane(p, v, int(category), track_id=int(track_id))

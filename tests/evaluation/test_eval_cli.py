@@ -56,6 +56,18 @@ def test_a_malformed_prediction_is_named(tmp_path):
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize("value", [float("nan"), float("inf")], ids=["nan", "inf"])
+def test_a_prediction_with_nan_or_inf_points_is_named(tmp_path, value):
+    data = write_prediction_set(tmp_path)
+    bad = data.pred_file("b")
+    prediction = json.loads(bad.read_text())
+    prediction["lane_lines"][0]["xyz"][2][0] = value  # Python's JSON writes NaN / Infinity
+    bad.write_text(json.dumps(prediction))
+    result = run_eval(*options(data, tmp_path / "out"))
+    assert result.returncode == 1
+    assert result.stderr.strip() == f"lanelab-eval: {bad}: lane_lines[0].xyz holds NaN or infinity"
+
+
 def test_a_prediction_of_another_frame_is_named(tmp_path):
     data = write_prediction_set(tmp_path)
     bad = data.pred_file("c")

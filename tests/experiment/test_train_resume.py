@@ -27,3 +27,16 @@ def test_resume_from_last_continues_the_step_count(tiny_store: Path, tmp_path: P
     assert logged_steps(tmp_path / "first" / "metrics.csv") == [0, 1, 2, 3]
     assert logged_steps(tmp_path / "second" / "metrics.csv") == [4, 5]
     assert torch.load(last, weights_only=False)["global_step"] == 6
+
+
+def test_a_resumed_run_appends_to_its_history_from_the_final_step(tiny_store: Path, tmp_path: Path) -> None:
+    # 6 steps per epoch: the first run validates at step 6 (a checkpoint) and stops at max_steps=8, mid-epoch.
+    common = ["logger=csv", "sampler=stream", "data.num_frames=1", "trainer.max_epochs=10", "trainer.limit_val_batches=1"]
+    train(load_train_config(tiny_overrides(tiny_store, tmp_path, *common, "trainer.max_steps=8")))
+    last = tmp_path / "checkpoints" / "last.ckpt"
+    assert torch.load(last, weights_only=False)["global_step"] == 8  # not 6: the steps after it are kept
+
+    train(load_train_config(tiny_overrides(tiny_store, tmp_path, *common, "trainer.max_steps=10", "ckpt_path=last")))
+    assert logged_steps(tmp_path / "csv" / "metrics.csv") == list(range(10))  # each step once, the first run's kept
+    assert torch.load(last, weights_only=False)["global_step"] == 10
+    assert not list((tmp_path / "checkpoints").glob("last-v*.ckpt"))

@@ -7,6 +7,7 @@ Damaged copies of a small synthetic log are made with the ``mcap`` library alone
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 
@@ -165,3 +166,17 @@ def test_garbled_label_is_skipped_and_its_frame_kept_unlabeled(tmp_path, synth_l
     (warning,) = result.warnings
     assert warning.startswith(f"1 message(s) skipped on {LANES}: not a lanelab.Lanes3D message")
 
+
+
+def test_nan_lane_points_drop_the_frame_with_a_reason(tmp_path, synth_log):
+    messages, spoiled = [], False
+    for m in read_log(synth_log("ros2")):
+        if m.topic == LANES and not spoiled:  # the label of the image at 0 s: one coordinate missing (NaN)
+            label = json.loads(m.data)
+            label["lanes"][0]["points"][3][1] = None
+            m, spoiled = dataclasses.replace(m, data=json.dumps(label).encode()), True
+        messages.append(m)
+    result = ingest_one(tmp_path, write_log(tmp_path / "nan_lane.mcap", messages))
+    assert result.status == "ingested" and result.num_frames == 19
+    assert result.dropped == {f"label on {LANES} has NaN or inf lane points or visibility": 1}
+    assert stamps(tmp_path / "store")[0] == 100_000_000

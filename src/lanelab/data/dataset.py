@@ -25,6 +25,10 @@ gt_category         (L,)               int64    OpenLane category ids
 gt_track_id         (L,)               int64    lane identity across frames
 ==================  =================  =======  ===============================================
 
+A frame whose K, poses, lane points or visibility hold NaN or inf (a store written by older
+code or by hand: the ingestor drops such frames) raises :class:`~lanelab.finite.NonFiniteError`
+naming the store, the clip and the frame's timestamp.
+
 L is the number of kept lanes of this frame (0 when it is unlabeled); the collate pads it.
 Padding at clip starts: a window reaching back before its clip's first frame repeats that
 first frame (valid False). Anchor3DLane-T, whose sampling Bi²Lane follows, pads with the
@@ -47,8 +51,20 @@ from lanelab.data.frame_index import FrameIndex, SampleKey, consecutive_offsets
 from lanelab.data.mirror import mirror_categories, mirror_intrinsics, mirror_transforms
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
-from lanelab.store import ClipStore
+from lanelab.finite import NonFiniteError
+from lanelab.store import ClipStore, FrameRecord
 from lanelab.store.image_codec import decode_image
+
+
+def check_finite(record: FrameRecord, clip_id: str, store: Path) -> None:
+    """Raise NonFiniteError naming the clip and frame when the record's numbers hold NaN or inf."""
+    arrays = {"K": record.K, "T_lane_cam": record.T_lane_cam, "T_world_lane": record.T_world_lane}
+    for i, lane in enumerate(record.lanes):
+        arrays.update({f"lanes[{i}].points": lane.points, f"lanes[{i}].visibility": lane.visibility})
+    bad = [name for name, values in arrays.items() if not np.isfinite(values).all()]
+    if bad:
+        raise NonFiniteError(f"{store}: clip {clip_id}, frame timestamp_ns={record.timestamp_ns}: "
+                             f"NaN or inf in {', '.join(bad)}")
 
 
 def mirror_targets(targets: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -104,6 +120,8 @@ class ClipDataset(Dataset):
         first = min(positions)
         records = self.store.read_frames(clip_id, first, current + 1)
         frames = [records[p - first] for p in positions]
+        for p in set(positions):
+            check_finite(records[p - first], clip_id, self.store.root)
 
         # Padding repeats a frame: decode and resize each distinct frame once.
         prepared = {p: self.resize(decode_image(records[p - first]), records[p - first].K) for p in set(positions)}

@@ -12,8 +12,9 @@ the data pipeline are rebuilt from the run config inside the checkpoint; scenari
 the store's tags). Beside the scores, the report shows the blind prior's, scored on the same
 frames (:mod:`lanelab.evaluation.blind_prior`): from the train split of ``prior_store``, for
 a checkpoint by default the store it was trained on; for prediction files only when
-``prior_store`` is given. Exits with status 1 on a malformed or missing input file (the message
-names it) and 2 on a bad option.
+``prior_store`` is given. Exits with status 1 on a malformed or missing input file, NaN or
+infinity in a prediction or ground-truth file included, and on a checkpoint whose weights hold
+NaN or inf (the message names the file), and 2 on a bad option.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from omegaconf.errors import MissingMandatoryValue
 from lanelab.config_checks import ConfigError, register_schema
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
+from lanelab.finite import NonFiniteError
 from lanelab.json_files import LaneFileError
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
 
@@ -46,7 +48,8 @@ def run(cfg: EvalConfig) -> list[Path]:
     """Evaluate, print the tables, write the report and the pictures; the paths written
     (prediction files, or a checkpoint on a store).
 
-    Raises LaneFileError (naming the file) for a malformed or missing input.
+    Raises LaneFileError (naming the file) for a malformed or missing input, NonFiniteError
+    (naming the checkpoint) for a checkpoint of NaN or inf weights.
     """
     # Heavy imports (torch, via the pictures) only once the options are good.
     from lanelab.evaluation.blind_prior import blind_prior_reference
@@ -101,7 +104,7 @@ def _run(cfg: DictConfig) -> None:
     except ConfigError as err:  # a bad option, or a checkpoint that lanelab-train did not write
         print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
         sys.exit(2)
-    except LaneFileError as err:
+    except (LaneFileError, NonFiniteError) as err:
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(1)
 

@@ -9,7 +9,9 @@ evaluates as ``train``, ``test`` and ``evaluation.enabled`` say. The run folder 
 config (``.hydra/``), the checkpoints, the logs, ``metrics.json`` (the last value of every
 logged metric, what ``lanelab-sweep-report`` reads; with the evaluation, also the blind
 prior's scores on the evaluated split as ``blind_prior/<metric>``) and the evaluation report.
-Exits with status 2 on a bad option, naming the key.
+Exits with status 2 on a bad option, naming the key, and with status 1 when NaN or inf stop the
+run (:class:`~lanelab.finite.NonFiniteError`: a store's frame, naming the clip and frame; a loss,
+naming the step and the batch's frames; a checkpoint's weights, naming the file).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from lanelab.config_checks import ConfigError, register_schema
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
 from lanelab.experiment.build import build_run
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
+from lanelab.finite import NonFiniteError
 
 register_schema(SCHEMA_NAME, TrainConfig)
 
@@ -84,8 +87,13 @@ def _run(cfg: DictConfig) -> float | None:
     except ConfigError as err:
         print(f"lanelab-train: bad option: {err}", file=sys.stderr)
         sys.exit(2)
+    try:
+        metrics = train(cfg)
+    except NonFiniteError as err:
+        print(f"lanelab-train: {err}", file=sys.stderr)
+        sys.exit(1)
     # The value a Hydra sweeper (e.g. optuna) optimises.
-    return train(cfg).get("val/f1")
+    return metrics.get("val/f1")
 
 
 def main() -> None:

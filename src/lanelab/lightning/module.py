@@ -12,7 +12,9 @@ Frames count towards the loss and the metric when the current frame is labeled a
 is not ``padding`` (:func:`~lanelab.models.api.scored_frames`).
 
 The loss is the criterion's, called with the detector's outputs as they come and the batch;
-every term it returns is logged. Hydra builds the module from ``conf/model/*.yaml`` (which
+every term it returns is logged. A loss of NaN or inf stops training before the optimiser step
+(:class:`~lanelab.finite.NonFiniteError` naming the step and the batch's clips and frames), and
+a checkpoint of NaN or inf weights is neither written nor read (naming the file). Hydra builds the module from ``conf/model/*.yaml`` (which
 start from ``conf/module/lane_detection.yaml``); it holds no defaults of its own.
 """
 
@@ -27,6 +29,8 @@ from torch import Tensor, nn
 from torch.optim import Optimizer
 from torch.optim.lr_scheduler import LRScheduler
 
+from lanelab.finite import NonFiniteError
+from lanelab.lightning.checkpoint import describe, non_finite_tensors
 from lanelab.lightning.pictures import log_pictures, prediction_picture
 from lanelab.lightning.predictions import (
     DenseLanes,
@@ -125,12 +129,34 @@ class LaneDetectionModule(pl.LightningModule):
     # ----------------------------------------------------------------- training
     def training_step(self, batch: Mapping[str, Any], batch_idx: int) -> Tensor:
         losses = self.criterion(self(batch), batch)
+        if not torch.isfinite(losses["total"]):
+            raise NonFiniteError(self._non_finite_loss(losses, batch))
         count = int(scored_frames(batch).sum())
         if count:
             logged = {"train/loss": losses["total"]}
             logged.update({f"train/loss_{term}": value for term, value in losses.items() if term != "total"})
             self.log_dict(logged, batch_size=count)
         return losses["total"]
+
+    def _non_finite_loss(self, losses: Mapping[str, Tensor], batch: Mapping[str, Any]) -> str:
+        """The message of a NaN or inf loss: the step, the terms, the batch's current frames."""
+        terms = ", ".join(f"{term}={float(value)}" for term, value in losses.items() if not torch.isfinite(value))
+        frames = ", ".join(f"{clip}@{int(t)}" for clip, t in zip(batch["clip_id"], batch["timestamp_ns"][:, -1]))
+        return (f"step {self.global_step}: the loss is not finite ({terms}) on the batch of frames "
+                f"(clip_id@timestamp_ns) {frames}; no optimiser step was taken")
+
+    # -------------------------------------------------------------- checkpoints
+    def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        names = non_finite_tensors(checkpoint["state_dict"])
+        if names:
+            raise NonFiniteError(f"step {self.global_step}: not saving a checkpoint of NaN or inf weights "
+                                 f"in {describe(names)}")
+
+    def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        names = non_finite_tensors(checkpoint["state_dict"])
+        if names:
+            path = self._trainer.ckpt_path if self._trainer is not None else "the checkpoint"
+            raise NonFiniteError(f"{path}: the checkpoint's weights hold NaN or inf in {describe(names)}")
 
     # --------------------------------------------------------------- evaluation
     def validation_step(self, batch: Mapping[str, Any], batch_idx: int) -> None:

@@ -12,7 +12,8 @@ The layout is the one of the official evaluator (OpenDriveLab/OpenLane,
   evaluator, N x 2 lanes get z = 0 and columns past the third are ignored. Any other key
   (``visibility``, scores...) is ignored.
 
-Every problem is reported as an :class:`OpenLaneFormatError` that names the file.
+Every problem is reported as an :class:`OpenLaneFormatError` that names the file, NaN or
+infinity (which Python's JSON reads) in any number included: a lane is never silently dropped.
 """
 
 from __future__ import annotations
@@ -63,8 +64,8 @@ def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
     file_path = require(data, "file_path", path)
     if not isinstance(file_path, str):
         raise OpenLaneFormatError(path, "'file_path' must be a string")
-    extrinsic = numeric_array(require(data, "extrinsic", path), (4, 4), "'extrinsic'", path)
-    K = numeric_array(require(data, "intrinsic", path), (3, 3), "'intrinsic'", path)
+    extrinsic = finite(numeric_array(require(data, "extrinsic", path), (4, 4), "'extrinsic'", path), "'extrinsic'", path)
+    K = finite(numeric_array(require(data, "intrinsic", path), (3, 3), "'intrinsic'", path), "'intrinsic'", path)
     T = ground_from_camera(extrinsic)
 
     lanes, visibility, categories = [], [], []
@@ -74,6 +75,8 @@ def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
         vis = numeric_array(
             require(lane, "visibility", path, where), (None,), f"{where}.visibility", path
         )
+        finite(xyz, f"{where}.xyz", path)
+        finite(vis, f"{where}.visibility", path)
         if vis.shape[0] != xyz.shape[1]:
             raise OpenLaneFormatError(
                 path, f"{where}: {vis.shape[0]} visibility values for {xyz.shape[1]} points"
@@ -98,9 +101,17 @@ def read_prediction(path: str | os.PathLike[str]) -> PredictionFrame:
             raise OpenLaneFormatError(
                 path, f"{where}.xyz must be a non-empty (N, 3) or (N, 2) list, got {xyz.shape}"
             )
+        finite(xyz[:, :3], f"{where}.xyz", path)  # the columns the evaluator reads
         lanes.append(xyz)
         categories.append(_category(lane, path, where, strict=False))
     return PredictionFrame(file_path, lanes, categories)
+
+
+def finite(array: np.ndarray, what: str, path: str | os.PathLike[str]) -> np.ndarray:
+    """array, unless it holds NaN or infinity (then OpenLaneFormatError naming the file and ``what``)."""
+    if not np.isfinite(array).all():
+        raise OpenLaneFormatError(path, f"{what} holds NaN or infinity")
+    return array
 
 
 def _category(lane: dict[str, Any], path: str | os.PathLike[str], where: str, strict: bool) -> int:
