@@ -43,9 +43,10 @@ from typing import Any
 import numpy as np
 
 from lanelab.geometry.frames import T_BASE_LANE
-from lanelab.json_files import LaneFileError, load_json_object, numeric_array, require, require_list
+from lanelab.json_files import LaneFileError, numeric_array, require, require_list
 from lanelab.lanes import NO_TRACK, Lane
 from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_camera
+from lanelab.openlane.read import read_camera_header
 
 NS_PER_NAME_UNIT = 10  # file names count 10 ns units (microseconds followed by "00")
 
@@ -89,12 +90,7 @@ def vehicle_from_lane(extrinsic: np.ndarray) -> np.ndarray:
 
 def read_annotation(path: str | os.PathLike[str]) -> Annotation:
     """Read and validate one annotation file; LaneFileError names the file and the fault."""
-    data = load_json_object(path)
-    file_path = require(data, "file_path", path)
-    if not isinstance(file_path, str):
-        raise LaneFileError(path, "'file_path' must be a string")
-    K = numeric_array(require(data, "intrinsic", path), (3, 3), "'intrinsic'", path)
-    extrinsic = numeric_array(require(data, "extrinsic", path), (4, 4), "'extrinsic'", path)
+    data, file_path, K, extrinsic = read_camera_header(path)
     T_lane_cam = ground_from_camera(extrinsic)
     T_world_lane = None
     if "pose" in data:

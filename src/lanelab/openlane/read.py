@@ -58,14 +58,21 @@ class PredictionFrame:
     categories: list[int]
 
 
-def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
-    """Read and validate one ground-truth JSON and convert its lanes to the ground frame."""
+def read_camera_header(path: str | os.PathLike[str]) -> tuple[dict[str, Any], str, np.ndarray, np.ndarray]:
+    """The part every annotated OpenLane file shares (ground truth, the dataset's own annotations):
+    the JSON object, its ``file_path``, intrinsic K (3, 3) and extrinsic (4, 4), validated and finite."""
     data = load_json_object(path)
     file_path = require(data, "file_path", path)
     if not isinstance(file_path, str):
         raise OpenLaneFormatError(path, "'file_path' must be a string")
     extrinsic = finite(numeric_array(require(data, "extrinsic", path), (4, 4), "'extrinsic'", path), "'extrinsic'", path)
     K = finite(numeric_array(require(data, "intrinsic", path), (3, 3), "'intrinsic'", path), "'intrinsic'", path)
+    return data, file_path, K, extrinsic
+
+
+def read_ground_truth(path: str | os.PathLike[str]) -> GroundTruthFrame:
+    """Read and validate one ground-truth JSON and convert its lanes to the ground frame."""
+    data, file_path, K, extrinsic = read_camera_header(path)
     T = ground_from_camera(extrinsic)
 
     lanes, visibility, categories = [], [], []
