@@ -22,9 +22,15 @@ MANY = 120  # copies of the small log: a workers=2 run of them lasts several sec
 
 
 def start_ingest(*args: str) -> subprocess.Popen:
-    """lanelab-ingest in its own process group (as a shell runs it), its output captured."""
+    """lanelab-ingest in its own process group (as a shell runs it), its output captured, with
+    Ctrl-C's default action even where the tests run with SIGINT ignored (a background job of a
+    non-interactive shell, nohup), which the child would inherit."""
     return subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_default_sigint)
+
+
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def wait_for(condition, timeout_s: float, what: str) -> None:
