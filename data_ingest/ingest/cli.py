@@ -15,10 +15,10 @@ from __future__ import annotations
 import sys
 
 import hydra
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from data_ingest.ingest.config import SCHEMA_NAME, IngestConfig, validate
-from lanelab.config_checks import ConfigError, register_schema
+from lanelab.config_checks import ConfigError, register_schema, typed
 
 register_schema(SCHEMA_NAME, IngestConfig)
 
@@ -28,7 +28,7 @@ def _run(cfg: DictConfig) -> None:
     from data_ingest.ingest.ingest import FAILED, ingest, verify  # heavy imports only once the options are good
 
     try:
-        options = validate(OmegaConf.to_object(cfg))
+        options = validate(typed(cfg, IngestConfig))
         if options.verify:
             sys.exit(1 if verify(options.output) else 0)
         results = ingest(options)

@@ -12,11 +12,11 @@ import sys
 from collections import Counter
 
 import hydra
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 from omegaconf.errors import MissingMandatoryValue
 
 from data_ingest.openlane.config import SCHEMA_NAME, OpenLaneAdapterConfig, validate
-from lanelab.config_checks import ConfigError, register_schema
+from lanelab.config_checks import ConfigError, register_schema, typed
 from lanelab.json_files import LaneFileError
 from lanelab.store import ManifestError
 
@@ -44,7 +44,7 @@ def run(cfg: OpenLaneAdapterConfig) -> bool:
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="openlane")
 def _run(cfg: DictConfig) -> None:
     try:
-        ok = run(validate(OmegaConf.to_object(cfg)))
+        ok = run(validate(typed(cfg, OpenLaneAdapterConfig)))
     except MissingMandatoryValue as err:
         print(f"lanelab-openlane: missing option {err.full_key}=...", file=sys.stderr)
         sys.exit(2)

@@ -12,10 +12,10 @@ from __future__ import annotations
 import sys
 
 import hydra
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from data_ingest.synth.config import SCHEMA_NAME, SynthConfig, validate
-from lanelab.config_checks import ConfigError, register_schema
+from lanelab.config_checks import ConfigError, register_schema, typed
 
 register_schema(SCHEMA_NAME, SynthConfig)
 
@@ -23,7 +23,7 @@ register_schema(SCHEMA_NAME, SynthConfig)
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="synth")
 def _run(cfg: DictConfig) -> None:
     try:
-        synth_cfg = validate(OmegaConf.to_object(cfg))
+        synth_cfg = validate(typed(cfg, SynthConfig))
     except ConfigError as err:
         sys.exit(f"lanelab-synth: bad option: {err}")
     from data_ingest.synth.synthesize import synthesize  # heavy imports only once the options are good

@@ -8,12 +8,14 @@ work, naming the key, before anything is read or written.
 
 from __future__ import annotations
 
+import dataclasses
+import typing
 from pathlib import Path
-from typing import Callable, Sequence, TypeVar
+from typing import Any, Callable, Sequence, TypeVar
 
 from hydra import compose, initialize_config_module
 from hydra.core.config_store import ConfigStore
-from omegaconf import OmegaConf
+from omegaconf import DictConfig, OmegaConf
 
 Config = TypeVar("Config")
 
@@ -36,7 +38,43 @@ def load_config(config_name: str, schema_name: str, schema: type[Config],
     register_schema(schema_name, schema)
     with initialize_config_module(config_module="lanelab.conf", version_base="1.3"):
         cfg = compose(config_name=config_name, overrides=list(overrides))
-    return validate(OmegaConf.to_object(cfg))
+    return validate(typed(cfg, schema))
+
+
+def typed(cfg: DictConfig, schema: type[Config]) -> Config:
+    """The composed config as its schema's dataclass. Refuses keys the schema does not have:
+    OmegaConf refuses ``typo=1``, but Hydra adds ``+typo=1`` past its struct flag."""
+    check_known_keys(cfg, schema)
+    return OmegaConf.to_object(cfg)
+
+
+def check_known_keys(cfg: DictConfig, schema: type) -> None:
+    """ConfigError naming the first key of ``cfg`` that the dataclass ``schema`` (and the
+    dataclasses of its fields, recursively) does not declare; fields typed Any are not looked into."""
+    unknown = _unknown_keys(OmegaConf.to_container(cfg, resolve=False, throw_on_missing=False), schema, "")
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: no such option (check its spelling in the tool's conf/*.yaml)")
+
+
+def _unknown_keys(values: Any, schema: type, prefix: str) -> list[str]:
+    hints = typing.get_type_hints(schema)
+    found = []
+    for key, value in values.items():
+        if key not in hints:
+            found.append(f"{prefix}{key}")
+            continue
+        inner = _dataclass_in(hints[key])
+        if inner is not None and isinstance(value, dict):
+            found += _unknown_keys(value, inner, f"{prefix}{key}.")
+    return found
+
+
+def _dataclass_in(hint: Any) -> type | None:
+    """The dataclass a field's type hint names (``X``, ``X | None``), else None."""
+    for candidate in (hint, *typing.get_args(hint)):
+        if dataclasses.is_dataclass(candidate):
+            return candidate
+    return None
 
 
 def check_positive(key: str, value: float | None) -> None:

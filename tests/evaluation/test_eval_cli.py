@@ -102,6 +102,8 @@ def test_the_command_names_unknown_and_missing_options(tmp_path):
     data = write_prediction_set(tmp_path)
     unknown = run_eval(*options(data, tmp_path / "out", "long_rnage=true"))
     assert unknown.returncode != 0 and "long_rnage" in unknown.stderr + unknown.stdout
+    added = run_eval(*options(data, tmp_path / "out", "+long_rnage=true"))  # "+" adds past the struct flag
+    assert added.returncode == 2 and added.stderr.strip() == "lanelab-eval: bad option: long_rnage: no such option (check its spelling in the tool's conf/*.yaml)"
     missing = run_eval(f"pred={data.pred}")
     assert missing.returncode == 2 and "gt: missing" in missing.stderr
     assert not (tmp_path / "out").exists()

@@ -28,6 +28,8 @@ def test_fast_dev_run(model: str, sampler: str, tiny_store: Path, tmp_path: Path
     ("override", "key"),
     [
         ("+model.net.embd_dim=32", "model.net.embd_dim"),  # a typo: no such parameter
+        ("+seeed=3", "seeed"),  # Hydra adds a "+" key past the schema's struct flag
+        ("+paths.log_dirr=x", "paths.log_dirr"),
         ("model.net.num_lines=many", "model.net.num_lines"),  # a wrong type
         ("+trainer.max_epoch=3", "trainer.max_epoch"),
         ("data.batch_size=2.5", "data.batch_size"),
@@ -51,3 +53,17 @@ def test_cli_exits_2_naming_the_key(tmp_path: Path) -> None:
     result = subprocess.run(command, check=False, capture_output=True, text=True, timeout=120)
     assert result.returncode == 2
     assert "model.net.embd_dim" in result.stderr
+
+
+@pytest.mark.parametrize(("manifest", "message"), [(None, "no clip store manifest there"), ("{not json", "cannot read the manifest")])
+def test_cli_exits_1_with_one_line_on_a_missing_or_broken_store(manifest: str | None, message: str, tmp_path: Path) -> None:
+    store = tmp_path / "store"
+    store.mkdir()
+    if manifest is not None:
+        (store / "manifest.json").write_text(manifest)
+    command = [sys.executable, "-m", "lanelab.experiment.train", *tiny_overrides(store, tmp_path / "run"),
+               f"hydra.run.dir={tmp_path / 'run'}"]  # fmt: skip
+    result = subprocess.run(command, check=False, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1
+    last = result.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"lanelab-train: {store / 'manifest.json'}: {message}") and "Traceback" not in result.stderr

@@ -37,6 +37,8 @@ def test_a_bad_log_fails_alone_and_sets_the_exit_status(tmp_path, synth_log):
 
 @pytest.mark.parametrize("override, error, message", [
     ("no_such_key=1", ConfigCompositionException, "no_such_key"),
+    ("+no_such_key=1", ConfigError, "no_such_key: no such option"),  # "+" adds past the struct flag
+    ("+clips.no_such_key=1", ConfigError, "clips.no_such_key: no such option"),
     ("tolerances.label_s=soon", ConfigCompositionException, "tolerances.label_s"),
     ("workers=0", ConfigError, "workers"),
     ("split.train=0.9", ConfigError, "split ratios"),

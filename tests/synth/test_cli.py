@@ -23,6 +23,8 @@ def run_synth(*args: str) -> subprocess.CompletedProcess:
         ("encoding=rosbag", "encoding"),
         ("duration_s=-3", "duration_s"),
         ("no_such_key=1", "no_such_key"),
+        ("+no_such_key=1", "no_such_key: no such option"),  # "+" adds past the struct flag
+        ("+camera.no_such_key=1", "camera.no_such_key: no such option"),
         ("num_logs=many", "num_logs"),
         ("topics.lanes=", "topics.lanes is empty"),
         ("frames.ego=", "frames.ego is empty"),

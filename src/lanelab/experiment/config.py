@@ -18,7 +18,7 @@ from typing import Any
 from hydra import compose, initialize_config_module
 from omegaconf import MISSING, DictConfig
 
-from lanelab.config_checks import ConfigError, register_schema
+from lanelab.config_checks import ConfigError, check_known_keys, register_schema
 from lanelab.experiment.targets import TargetError, check_targets
 
 SCHEMA_NAME = "train_schema"  # the first entry of conf/train.yaml's defaults
@@ -84,6 +84,7 @@ class TrainConfig:
 
 def validate(cfg: DictConfig) -> DictConfig:
     """Check the composed config; raise :class:`ConfigError` naming the first bad key."""
+    check_known_keys(cfg, TrainConfig)
     try:
         check_targets(cfg)
     except TargetError as err:

@@ -23,10 +23,10 @@ import sys
 from pathlib import Path
 
 import hydra
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 from omegaconf.errors import MissingMandatoryValue
 
-from lanelab.config_checks import ConfigError, register_schema
+from lanelab.config_checks import ConfigError, register_schema, typed
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.finite import NonFiniteError
@@ -97,7 +97,7 @@ def run(cfg: EvalConfig) -> list[Path]:
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="eval")
 def _run(cfg: DictConfig) -> None:
     try:
-        run(validate(OmegaConf.to_object(cfg)))
+        run(validate(typed(cfg, EvalConfig)))
     except MissingMandatoryValue as err:
         print(f"lanelab-eval: missing option {err.full_key}=...", file=sys.stderr)
         sys.exit(2)

@@ -33,6 +33,7 @@ from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
 from lanelab.experiment.build import build_run
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
 from lanelab.finite import NonFiniteError
+from lanelab.store import ClipFileError, ManifestError
 
 register_schema(SCHEMA_NAME, TrainConfig)
 
@@ -89,7 +90,7 @@ def _run(cfg: DictConfig) -> float | None:
         sys.exit(2)
     try:
         metrics = train(cfg)
-    except NonFiniteError as err:
+    except (NonFiniteError, ManifestError, ClipFileError) as err:  # bad numbers, a missing or damaged store
         print(f"lanelab-train: {err}", file=sys.stderr)
         sys.exit(1)
     # The value a Hydra sweeper (e.g. optuna) optimises.
