@@ -45,12 +45,11 @@ def damaged_clips(store_dir: str | Path) -> list[str]:
     for clip in read_manifest(store_dir).clips:
         path = clip_path(store_dir, clip.clip_id)
         fault = clip_fault(store_dir, clip)
-        if fault is None and clip.sha256 is None:
+        if fault is not None:
+            lines.append(f"{path}: clip {clip.clip_id!r} {fault}")
+        elif clip.sha256 is None:
             try:
                 clip_file.check_readable(path)
             except clip_file.ClipFileError as err:
                 lines.append(str(err))
-                continue
-        if fault is not None:
-            lines.append(f"{path}: clip {clip.clip_id!r} {fault}")
     return lines
