@@ -2,6 +2,9 @@
 same checkpoint and data (the metric sums its counts over ranks; samplers pad, never drop)."""
 
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 from tiny_store import tiny_overrides
@@ -31,3 +34,17 @@ def test_two_processes_match_one(tiny_store: Path, tmp_path: Path) -> None:
     for name in ("f1", "precision", "recall", "x_error_close", "z_error_close"):
         a, b = ddp[f"test/{name}"], single[f"test/{name}"]
         assert (math.isnan(a) and math.isnan(b)) or math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-9), name
+
+
+
+def test_a_non_finite_loss_on_one_rank_stops_both(tiny_store: Path, tmp_path: Path) -> None:
+    """lanelab-train with two processes (the popen launcher, as users run it): rank 1's loss turns
+    NaN at its second step, rank 0's stays finite. Both stop (before, rank 0 waited forever in the
+    gradient all-reduce), and the command ends with rank 1's error naming its batch."""
+    overrides = ["trainer=ddp_cpu", *COMMON, "trainer.limit_train_batches=4",
+                 "model.criterion._target_=nan_on_one_rank.NaNOnRankOne"]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}
+    result = subprocess.run([sys.executable, "-m", "lanelab.experiment.train", *tiny_overrides(tiny_store, tmp_path, *overrides)],
+                            capture_output=True, text=True, timeout=240, env=env)  # fmt: skip
+    assert result.returncode != 0
+    assert "step 1: the loss is not finite (total=nan) on the batch of frames" in result.stderr

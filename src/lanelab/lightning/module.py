@@ -12,7 +12,7 @@ Frames count towards the loss and the metric when the current frame is labeled a
 is not ``padding`` (:func:`~lanelab.models.api.scored_frames`).
 
 The loss is the criterion's, called with the detector's outputs as they come and the batch;
-every term it returns is logged. A loss of NaN or inf stops training before the optimiser step
+every term it returns is logged. A loss of NaN or inf on any rank stops every rank before the optimiser step
 (:class:`~lanelab.finite.NonFiniteError` naming the step and the batch's clips and frames), and
 a checkpoint of NaN or inf weights is neither written nor read (naming the file). Hydra builds the module from ``conf/model/*.yaml`` (which
 start from ``conf/module/lane_detection.yaml``); it holds no defaults of its own.
@@ -129,14 +129,21 @@ class LaneDetectionModule(pl.LightningModule):
     # ----------------------------------------------------------------- training
     def training_step(self, batch: Mapping[str, Any], batch_idx: int) -> Tensor:
         losses = self.criterion(self(batch), batch)
-        if not torch.isfinite(losses["total"]):
-            raise NonFiniteError(self._non_finite_loss(losses, batch))
+        finite = bool(torch.isfinite(losses["total"]))
+        if not self._on_every_rank(finite):
+            raise NonFiniteError(self._non_finite_loss(losses, batch) if not finite else (
+                f"step {self.global_step}: the loss of another process is not finite; no optimiser step was taken"))
         count = int(scored_frames(batch).sum())
         if count:
             logged = {"train/loss": losses["total"]}
             logged.update({f"train/loss_{term}": value for term, value in losses.items() if term != "total"})
             self.log_dict(logged, batch_size=count)
         return losses["total"]
+
+    def _on_every_rank(self, decision: bool) -> bool:
+        """Whether decision holds on every rank. A rank that stopped alone would leave the others
+        waiting in the gradient all-reduce."""
+        return decision if self._trainer is None else self._trainer.strategy.reduce_boolean_decision(decision, all=True)
 
     def _non_finite_loss(self, losses: Mapping[str, Tensor], batch: Mapping[str, Any]) -> str:
         """The message of a NaN or inf loss: the step, the terms, the batch's current frames."""
