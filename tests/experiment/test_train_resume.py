@@ -40,3 +40,21 @@ def test_a_resumed_run_appends_to_its_history_from_the_final_step(tiny_store: Pa
     assert logged_steps(tmp_path / "csv" / "metrics.csv") == list(range(10))  # each step once, the first run's kept
     assert torch.load(last, weights_only=False)["global_step"] == 10
     assert not list((tmp_path / "checkpoints").glob("last-v*.ckpt"))
+
+
+def test_a_run_resumed_after_a_crash_logs_each_step_once(tiny_store: Path, tmp_path: Path) -> None:
+    # The first run checkpoints at step 6 (validation) and goes on to step 8; resuming from the step-6
+    # checkpoint (as after a crash at step 8, before any later checkpoint) retrains steps 6 and 7.
+    common = ["logger=csv", "sampler=stream", "data.num_frames=1", "trainer.max_epochs=10", "trainer.limit_val_batches=1"]
+    train(load_train_config(tiny_overrides(tiny_store, tmp_path, *common, "trainer.max_steps=8")))
+    (at_six,) = (tmp_path / "checkpoints").glob("epoch*step0000006.ckpt")
+    history = tmp_path / "csv" / "metrics.csv"
+    assert logged_steps(history) == list(range(8))
+
+    before = history.read_text().splitlines()
+    train(load_train_config(tiny_overrides(tiny_store, tmp_path, *common, "trainer.max_steps=10", f"ckpt_path={at_six}")))
+    after = history.read_text().splitlines()
+    assert after[:8] == before[:8]  # the header and the 7 rows logged before the step-6 checkpoint
+    steps = logged_steps(history)
+    assert steps == sorted(set(steps)) and steps[:6] == list(range(6))  # each step once: 6 and 7 from the resumed run
+    assert len(steps) == 10

@@ -21,6 +21,7 @@ from lightning.pytorch.loggers import Logger
 from omegaconf import DictConfig, OmegaConf
 
 from lanelab.config_checks import ConfigError
+from lanelab.lightning.csv_logger import HistoryAtCheckpoint
 
 CONFIG_KEY = "lanelab_config"
 
@@ -44,7 +45,7 @@ def build_run(cfg: DictConfig) -> Run:
     datamodule = instantiate(cfg.data)
     module = instantiate(cfg.model)
     callbacks = [instantiate(node) for node in (cfg.callbacks or {}).values()]
-    callbacks.append(RunConfigInCheckpoint(cfg))
+    callbacks += [RunConfigInCheckpoint(cfg), HistoryAtCheckpoint()]
     loggers = [instantiate(node) for node in (cfg.logger or {}).values()]
     trainer = instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
     for logger in loggers:
