@@ -35,11 +35,13 @@ class Refined(NamedTuple):
     """One direction's result over the frames it visited, in visiting order.
 
     features: [(B, A, M, C)] the lane feature of each visited frame (eq. 1, 4);
+    anchors: [(B, A, M, 3)] the anchors it was sampled at, in that frame's lane frame;
     detections: (B, S, A, M, 3) the refined anchors A + S of every step but the last, moved into
     the current frame (S = visited frames - 1); detection_valid: (B, S) bool, the step's frame
     was real (not padding)."""
 
     features: list[Tensor]
+    anchors: list[Tensor]
     detections: Tensor
     detection_valid: Tensor
 
@@ -74,11 +76,12 @@ class TemporalRefinement(nn.Module):
         B = features.shape[0]
         current = features.shape[1] - 1
         points = anchors.to(features.dtype).expand(B, *anchors.shape)
-        lanes, detections, detection_valid = [], [], []
+        lanes, sampled_at, detections, detection_valid = [], [], [], []
         for step, frame in enumerate(order):
             grid = sampling_grid(points, K[:, frame], T_lane_cam[:, frame], image_size)
             lane = sample_features(features[:, frame], grid)  # (B, A, M, C)
             lanes.append(lane)
+            sampled_at.append(points)
             if step == len(order) - 1:
                 break
             dx, dz = self.offsets(lane.flatten(-2)).unflatten(-1, (2, -1)).unbind(-2)  # (B, A, M) each, eq. 2
@@ -90,5 +93,5 @@ class TemporalRefinement(nn.Module):
                 refined = move_points(ego_motion(T_world_lane[:, following], T_world_lane[:, frame]), refined)
             points = torch.where(valid[:, frame, None, None, None], refined, points)
         if not detections:
-            return Refined(lanes, points.new_zeros(B, 0, *points.shape[1:]), valid.new_zeros(B, 0))
-        return Refined(lanes, torch.stack(detections, 1), torch.stack(detection_valid, 1))
+            return Refined(lanes, sampled_at, points.new_zeros(B, 0, *points.shape[1:]), valid.new_zeros(B, 0))
+        return Refined(lanes, sampled_at, torch.stack(detections, 1), torch.stack(detection_valid, 1))
