@@ -262,3 +262,13 @@ def test_every_parameter_receives_gradient(tiny_net, tiny_criterion):
     losses["total"].backward()
     silent = [name for name, p in net.named_parameters() if p.grad is None or not p.grad.abs().sum() > 0]
     assert silent == []
+
+
+def test_a_batch_without_scored_frames_costs_nothing_but_reaches_every_output(tiny_net, tiny_criterion):
+    net = build(tiny_net).train()
+    batch = window_batch(2, 4)
+    batch.update({"labeled": torch.ones(2, 4, dtype=torch.bool), "padding": torch.ones(2, dtype=torch.bool)})
+    losses = instantiate(tiny_criterion)(net(batch), batch)
+    assert set(losses) == {"total"} and float(losses["total"]) == 0.0
+    losses["total"].backward()  # DDP ranks stay in step: every parameter that made an output has a gradient
+    assert all(p.grad is not None for p in net.parameters())

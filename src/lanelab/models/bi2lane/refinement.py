@@ -75,7 +75,8 @@ class TemporalRefinement(nn.Module):
         (B, F, 4, 4), valid (B, F) bool; the current frame is the last (F - 1)."""
         B = features.shape[0]
         current = features.shape[1] - 1
-        points = anchors.to(features.dtype).expand(B, *anchors.shape)
+        # Metres in at least float32: bf16 steps are half a metre at 100 m.
+        points = anchors.to(torch.promote_types(features.dtype, torch.float32)).expand(B, *anchors.shape)
         lanes, sampled_at, detections, detection_valid = [], [], [], []
         for step, frame in enumerate(order):
             grid = sampling_grid(points, K[:, frame], T_lane_cam[:, frame], image_size)

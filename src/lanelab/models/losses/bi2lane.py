@@ -86,7 +86,8 @@ class Bi2LaneCriterion(nn.Module):
         scored = scored_frames(batch)
         if not bool(scored.any()):
             # Nothing to learn from; a zero that reaches every output keeps DDP ranks in step.
-            return {"total": sum(v.sum() * 0.0 for v in outputs.values() if isinstance(v, Tensor) and v.requires_grad)}
+            tensors = [value for value in outputs.values() if isinstance(value, Tensor) and value.is_floating_point()]
+            return {"total": sum((value.sum() * 0.0 for value in tensors), outputs["points"].new_zeros(()))}
         targets = {key: batch[key][scored] for key in TARGET_KEYS}
         points, logits = outputs["points"][-1, scored], outputs["logits"][-1, scored]  # (B', A, M, 4), (B', A, K + 1)
         y = targets["gt_y"].to(points)
