@@ -53,7 +53,8 @@ def clip(num_frames: int, image_size: tuple[int, int], device: torch.device) -> 
     for f in range(num_frames):
         pose = torch.eye(4, dtype=torch.float64)
         pose[1, 3] = 2.0 * f
-        frames.append({"images": torch.randn(1, 3, H, W), "K": K[None], "T_lane_cam": T_lane_cam[None], "T_world_lane": pose[None]})
+        camera = {"K": K[None], "T_lane_cam": T_lane_cam[None], "T_world_lane": pose[None]}
+        frames.append({"images": torch.randn(1, 3, H, W), **camera})
     return [{key: value.to(device) for key, value in frame.items()} for frame in frames]
 
 
@@ -112,7 +113,10 @@ def main() -> None:
     if args.threads:
         torch.set_num_threads(args.threads)
     device = torch.device(args.device)
-    machine = torch.cuda.get_device_name(device) if device.type == "cuda" else f"{platform.processor() or platform.machine()}, {torch.get_num_threads()} threads"
+    if device.type == "cuda":
+        machine = torch.cuda.get_device_name(device)
+    else:
+        machine = f"{platform.processor() or platform.machine()}, {torch.get_num_threads()} threads"
     print(f"Bi²Lane inference, {args.dtype}, {machine}; medians over {args.frames} frames after {args.warmup}")
     print("| config | history frames | cached ms | cached FPS | uncached ms | uncached FPS |")
     print("|---|---:|---:|---:|---:|---:|")

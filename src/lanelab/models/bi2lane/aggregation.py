@@ -79,7 +79,8 @@ class BiLevelAggregation(nn.Module):
         """Eq. 7-8: each point's query against the same point of every history frame."""
         B, A, N, M, C = history.shape
         if N >= self.age.shape[0]:
-            raise ValueError(f"{N} history frames, but the point-level aggregation was built for {self.age.shape[0] - 1}")
+            built = self.age.shape[0] - 1
+            raise ValueError(f"{N} history frames, but the point-level aggregation was built for {built}")
         query = (current + self.age[0].to(current.dtype)).reshape(B * A * M, 1, C)
         keys = history + self.age[1 : N + 1, None].to(history.dtype)  # (B, A, N, M, C)
         keys = keys.permute(0, 1, 3, 2, 4).reshape(B * A * M, N, C)

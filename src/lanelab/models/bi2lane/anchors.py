@@ -55,7 +55,8 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
     dtype = torch.promote_types(points.dtype, torch.float32)
     shape = points.shape
     with torch.autocast(points.device.type, enabled=False):
-        uv, _, in_front = project_lane_points(points.reshape(shape[0], -1, 3).to(dtype), K.to(dtype), T_lane_cam.to(dtype))
+        flat = points.reshape(shape[0], -1, 3).to(dtype)
+        uv, _, in_front = project_lane_points(flat, K.to(dtype), T_lane_cam.to(dtype))
         height, width = image_size
         grid = torch.stack([2 * uv[..., 0] / width - 1, 2 * uv[..., 1] / height - 1], dim=-1)
         grid = torch.where(in_front[..., None], grid, torch.full_like(grid, _OUTSIDE))
@@ -65,7 +66,8 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
 def sample_features(features: Tensor, grid: Tensor) -> Tensor:
     """S of eq. 1: feature maps (B, C, h, w) covering the image, bilinearly sampled at grid
     (B, A, M, 2) of :func:`sampling_grid` -> (B, A, M, C); zero outside the image."""
-    sampled = F.grid_sample(features, grid.to(features.dtype), mode="bilinear", padding_mode="zeros", align_corners=False)
+    grid = grid.to(features.dtype)
+    sampled = F.grid_sample(features, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
     return sampled.permute(0, 2, 3, 1)
 
 

@@ -211,7 +211,8 @@ class Bi2Lane(nn.Module):
         dx, dz = self.x_head(lanes).float(), self.z_head(lanes).float()
         visibility = self.vis_head(lanes).float().sigmoid()
         anchors = self.anchors.float()
-        points = torch.stack([anchors[..., 0] + dx, anchors[..., 1].expand_as(dx), anchors[..., 2] + dz, visibility], -1)
+        x, y, z = anchors.unbind(-1)
+        points = torch.stack([x + dx, y.expand_as(dx), z + dz, visibility], -1)
         outputs = {
             "points": points[None],
             "logits": self.classifier(lanes)[None],
