@@ -110,6 +110,26 @@ def test_matching_on_anchors_pairs_lanes_with_the_nearest_anchors_whatever_the_l
         build_matcher(match_on="nearest")
 
 
+def test_3d_anchors_are_matched_by_their_euclidean_distance_in_x_and_z():
+    """Bi²Lane's anchors: (x, z) at every ground-truth sample. A lane climbing 5 % goes to the
+    anchor pitched like it, not to the flat one at the same x; the cost is Anchor3DLane's mean
+    sqrt(dx² + dz²) over the visible samples."""
+    S = 10
+    y = torch.linspace(5, 50, S)
+    targets = {
+        "gt_y": y, "gt_x": torch.full((1, 1, S), 1.0), "gt_z": (0.05 * y)[None, None], "gt_vis": torch.ones(1, 1, S),
+        "gt_category": torch.full((1, 1), 2), "gt_mask": torch.ones(1, 1, dtype=torch.bool),
+    }  # fmt: skip
+    flat = torch.stack([torch.full((S,), 1.0), torch.zeros(S)], -1)
+    pitched = torch.stack([torch.full((S,), 1.3), 0.05 * y], -1)
+    anchors = torch.stack([flat, pitched])[None]  # (B, N, S, 2)
+    matcher = build_matcher(match_on="anchors", near_range=200.0)
+    ((pred, gt),) = matcher(torch.zeros(1, 2, BACKGROUND_INDEX + 1), torch.zeros(1, 2, S, 4), targets, anchors)
+    assert pred.tolist() == [1] and gt.tolist() == [0]
+    cost = matcher.anchor_cost(anchors, targets)[0, :, 0]
+    torch.testing.assert_close(cost, torch.stack([(0.05 * y).mean(), torch.tensor(0.3)]))
+
+
 def test_a_lane_far_from_every_free_anchor_is_no_lines_target():
     """Anchors at -1.75 and 1.75 m; lanes at -1.5, 2.1 and 7.0 m. Without a threshold the third
     lane takes the only line left however far it is (every lane is matched when G <= N); with

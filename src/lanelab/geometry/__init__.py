@@ -23,7 +23,7 @@ from lanelab.geometry.catmull_rom import (
     fit_control_points,
     sampling_matrix,
 )
-from lanelab.geometry.curves import REPRESENTATIONS, LaneCurves, lane_bases, sample_lanes
+from lanelab.geometry.curves import REPRESENTATIONS, LaneCurves, interpolate_in_y, lane_bases, sample_lanes
 from lanelab.geometry.frames import (
     T_BASE_LANE,
     T_LANE_BASE,
@@ -65,6 +65,7 @@ __all__ = [
     "extrinsic_base_to_lane",
     "fit_control_points",
     "in_image",
+    "interpolate_in_y",
     "interpolate_pose",
     "intersect_ground",
     "invert",

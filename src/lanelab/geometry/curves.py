@@ -68,3 +68,16 @@ class LaneCurves:
     def sample(self, points: Tensor, y: Tensor) -> Tensor:
         """Control points (..., M, 4) at positions y (S,), or (B, N, M, 4) at (B, S) -> (..., S, 4)."""
         return sample_lanes(points, self.bases(y))
+
+
+def interpolate_in_y(y: Tensor, grid_y: Tensor, values: Tensor) -> tuple[Tensor, Tensor]:
+    """Values (..., S) given at ascending positions grid_y (..., S), linearly interpolated at
+    positions y (..., Q) -> (..., Q), and whether each y lies inside the grid (..., Q) bool;
+    outside it the value is the nearest end's (clamped)."""
+    hi = torch.searchsorted(grid_y.contiguous(), y.contiguous()).clamp(1, grid_y.shape[-1] - 1)
+    lo = hi - 1
+    y0, y1 = grid_y.gather(-1, lo), grid_y.gather(-1, hi)
+    t = ((y - y0) / (y1 - y0)).clamp(0, 1)
+    interpolated = values.gather(-1, lo) * (1 - t) + values.gather(-1, hi) * t
+    inside = (y >= grid_y[..., :1]) & (y <= grid_y[..., -1:])
+    return interpolated, inside

@@ -3,6 +3,7 @@ offers the contract of ``api`` (:class:`LaneDetector`, trained with a :class:`La
 
 from lanelab.models.api import DetectionOutputs, LaneCriterion, LaneDetector
 from lanelab.models.backbone import ResNet
+from lanelab.models.bi2lane import Bi2Lane
 from lanelab.models.categories import (
     BACKGROUND_INDEX,
     NUM_LANE_CATEGORIES,
@@ -24,6 +25,7 @@ from lanelab.models.sta_masks import density, sta_masks
 
 __all__ = [
     "BACKGROUND_INDEX",
+    "Bi2Lane",
     "FPN",
     "NUM_LANE_CATEGORIES",
     "DecoderLayer",

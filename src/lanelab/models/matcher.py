@@ -13,7 +13,9 @@ at the grid ``gt_y``, ``gt_category`` (B, G) OpenLane ids, ``gt_mask`` (B, G) re
 with lines by where the lines start, not by what they predict, as Anchor3DLane assigns lanes to
 its anchors: the cost is the mean |x̂ - a| between the line's lateral anchor a and the lane's
 visible samples nearer than ``near_range`` m (all visible samples for a lane that starts
-further away). Matching on predictions is DETR's way and needs good predictions to be stable;
+further away). Models with 3D anchors (Bi²Lane's, models.bi2lane.anchors) give each anchor's
+(x, z) at the ground truth's samples instead, and the distance is Anchor3DLane's Euclidean one,
+sqrt((x̂ - a_x)² + (ẑ - a_z)²), averaged over the same samples. Matching on predictions is DETR's way and needs good predictions to be stable;
 early in training they are not, a lane goes to a different line from step to step, and every
 line learns the mean lane layout. Matching on anchors gives each line the same lane every step.
 With ``max_anchor_distance`` (Anchor3DLane's positive threshold) a pair whose anchor cost exceeds
@@ -77,7 +79,8 @@ class HungarianMatcher(nn.Module):
         self, pred_logits: Tensor, pred_curves: Tensor, targets: Mapping[str, Tensor], anchors: Tensor | None = None
     ) -> list[tuple[Tensor, Tensor]]:
         """pred_logits (B, N, K + 1), background last; pred_curves (B, N, S, 4) = (x, y, z, v)
-        sampled at the ground truth's y grid; anchors (N,) metres, needed by match_on="anchors".
+        sampled at the ground truth's y grid; anchors, needed by match_on="anchors": lateral
+        anchors (N,) or 3D anchors' (x, z) at the ground truth's y grid (B, N, S, 2), metres.
         Returns per batch item (pred_index, gt_index), long tensors of equal length (min(N, G_b)
         without positive_distance; a lane may have several lines with it), gt_index into the
         padded G axis."""
@@ -102,12 +105,17 @@ class HungarianMatcher(nn.Module):
         return [(pred.to(device), gt.to(device)) for pred, gt in matches]
 
     def anchor_cost(self, anchors: Tensor, targets: Mapping[str, Tensor]) -> Tensor:
-        """Pair costs (B, N, G): mean |x̂ - a| over each lane's near visible samples."""
+        """Pair costs (B, N, G) of lateral anchors (N,) or 3D anchors (B, N, S, 2) (module doc):
+        their mean distance from each lane over its near visible samples."""
         visible = targets["gt_vis"] > 0.5  # (B, G, S)
         y = targets["gt_y"] if targets["gt_y"].dim() == 2 else targets["gt_y"].expand(visible.shape[0], -1)
         near = visible & (y[:, None, :] <= self.near_range)
         used = torch.where(near.any(-1, keepdim=True), near, visible).float()[:, None]  # (B, 1, G, S)
-        distance = (targets["gt_x"][:, None].float() - anchors.float()[None, :, None, None]).abs()  # (B, N, G, S)
+        if anchors.dim() == 1:
+            distance = (targets["gt_x"][:, None].float() - anchors.float()[None, :, None, None]).abs()  # (B, N, G, S)
+        else:
+            a_x, a_z = anchors.float()[:, :, None].unbind(-1)  # (B, N, 1, S)
+            distance = torch.hypot(targets["gt_x"][:, None].float() - a_x, targets["gt_z"][:, None].float() - a_z)
         return (distance * used).sum(-1) / used.sum(-1).clamp_min(1)
 
     def _one_to_many(self, cost: Tensor, gt_index: Tensor) -> tuple[Tensor, Tensor]:

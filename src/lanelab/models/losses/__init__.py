@@ -1,7 +1,11 @@
-"""SparseLaneSTP losses: detection (eq. 22-24), priors (LaneCPP spatial, eq. 12-13 temporal), their
+"""Losses. SparseLaneSTP's: detection (eq. 22-24), priors (LaneCPP spatial, eq. 12-13 temporal), their
 sum over the decoder layers (``criterion``), the query generator's auxiliary instance-mask loss,
-and the criterion the Lightning module calls with the model's outputs (``sparselanestp``)."""
+and the criterion the Lightning module calls with the model's outputs (``sparselanestp``).
+Bi²Lane's: its criterion (``bi2lane``, eq. 12-14) and the auxiliary BEV segmentation
+(``bev_segmentation``); it reuses the detection losses."""
 
+from lanelab.models.losses.bev_segmentation import bev_lane_mask, bev_segmentation_loss
+from lanelab.models.losses.bi2lane import Bi2LaneCriterion
 from lanelab.models.losses.criterion import TERMS, SparseLaneSTPLoss
 from lanelab.models.losses.detection import focal_loss, regression_loss, visibility_loss
 from lanelab.models.losses.instance_mask import InstanceMaskLoss, lane_masks
@@ -15,9 +19,12 @@ from lanelab.models.losses.sparselanestp import SparseLaneSTPCriterion, detectio
 
 __all__ = [
     "TERMS",
+    "Bi2LaneCriterion",
     "InstanceMaskLoss",
     "SparseLaneSTPCriterion",
     "SparseLaneSTPLoss",
+    "bev_lane_mask",
+    "bev_segmentation_loss",
     "curvature_excess",
     "detection_inputs",
     "focal_loss",

@@ -1,0 +1,140 @@
+"""Bi²Lane inference speed against the number of history frames, with and without the frame cache.
+
+    python benchmarks/bench_bi2lane.py [--configs tiny paper] [--history 0 1 2 3 4 5] [--device cpu|cuda]
+        [--dtype fp32|bf16] [--frames 10] [--warmup 3] [--threads N] [--json out.json]
+
+Each configuration is conf/'s: "tiny" = ``experiment=tiny model=bi2lane`` (at its 64 x 96 images),
+"paper" = ``model=bi2lane`` (ResNet-50, Anchor3DLane's anchors) at 360 x 480 (Anchor3DLane's input).
+For every N (0: the single-frame baseline's computation, bi2lane with no history frames) a model
+with random weights runs the same random clip of one stream, eval mode, no gradient, two ways:
+- cached: ``reset`` once, then ``step`` per frame (one backbone pass a frame, the past frames'
+  features from the cache);
+- uncached: ``forward`` on the window of the N + 1 latest frames (N + 1 backbone passes).
+Variants run interleaved frame by frame, so that load from other processes affects them alike;
+figures are medians over the timed frames (after ``--warmup``). The paper's Table VI grows from
+29 ms (1 history frame) to 44 ms (5), +52 %; "growth" below is the same ratio, 5 frames over 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import time
+from contextlib import nullcontext
+from pathlib import Path
+
+import torch
+from hydra.utils import instantiate
+
+from lanelab.experiment.config import load_train_config
+
+CONFIGS = {
+    "tiny": (["experiment=tiny", "model=bi2lane"], (64, 96)),
+    "paper": (["model=bi2lane"], (360, 480)),
+}
+CAMERA_KEYS = ("K", "T_lane_cam", "T_world_lane")
+
+
+def build(config: str, history: int, device: torch.device) -> torch.nn.Module:
+    overrides, _ = CONFIGS[config]
+    cfg = load_train_config([*overrides, f"model.net.num_history_frames={history}", "paths.output_dir=unused"])
+    torch.manual_seed(0)
+    return instantiate(cfg.model.net).to(device).eval()
+
+
+def clip(num_frames: int, image_size: tuple[int, int], device: torch.device) -> list[dict[str, torch.Tensor]]:
+    """A random clip of one stream: images, a forward-looking camera, an ego driving 2 m a frame."""
+    H, W = image_size
+    K = torch.tensor([[0.9 * W, 0.0, W / 2], [0.0, 0.9 * W, H / 2], [0.0, 0.0, 1.0]])
+    T_lane_cam = torch.tensor([[1.0, 0, 0, 0], [0, 0, 1, 1.5], [0, -1, 0, 1.5], [0, 0, 0, 1]])
+    frames = []
+    for f in range(num_frames):
+        pose = torch.eye(4, dtype=torch.float64)
+        pose[1, 3] = 2.0 * f
+        camera = {"K": K[None], "T_lane_cam": T_lane_cam[None], "T_world_lane": pose[None]}
+        frames.append({"images": torch.randn(1, 3, H, W), **camera})
+    return [{key: value.to(device) for key, value in frame.items()} for frame in frames]
+
+
+def window(frames: list[dict[str, torch.Tensor]], f: int, history: int) -> dict[str, torch.Tensor]:
+    """The windowed input of frame f: its N + 1 latest frames, a clip's start padded with its first frame."""
+    positions = [max(p, 0) for p in range(f - history, f + 1)]
+    batch = {key: torch.stack([frames[p][key] for p in positions], 1) for key in ("images", *CAMERA_KEYS)}
+    batch["valid"] = torch.tensor([[p >= 0 for p in range(f - history, f + 1)]], device=batch["images"].device)
+    return batch
+
+
+def timed(call, device: torch.device) -> float:
+    if device.type == "cuda":
+        torch.cuda.synchronize()
+    start = time.perf_counter()
+    call()
+    if device.type == "cuda":
+        torch.cuda.synchronize()
+    return time.perf_counter() - start
+
+
+def run(config: str, histories: list[int], args: argparse.Namespace, device: torch.device) -> list[dict]:
+    frames = clip(args.warmup + args.frames, CONFIGS[config][1], device)
+    models = {n: build(config, n, device) for n in histories}
+    autocast = torch.autocast(device.type, dtype=torch.bfloat16) if args.dtype == "bf16" else nullcontext()
+    times = {(n, mode): [] for n in histories for mode in ("cached", "uncached")}
+    with torch.no_grad(), autocast:
+        for model in models.values():
+            model.reset(torch.ones(1, dtype=torch.bool, device=device))
+        for f, frame in enumerate(frames):
+            for n, model in models.items():
+                cached = timed(lambda: model.step(frame), device)
+                uncached = timed(lambda: model(window(frames, f, n)), device)
+                if f >= args.warmup:
+                    times[(n, "cached")].append(cached)
+                    times[(n, "uncached")].append(uncached)
+    rows = []
+    for n in histories:
+        for mode in ("cached", "uncached"):
+            median = statistics.median(times[(n, mode)])
+            rows.append({"config": config, "history_frames": n, "mode": mode, "ms": 1000 * median, "fps": 1 / median})
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--configs", nargs="+", default=["tiny", "paper"], choices=sorted(CONFIGS))
+    parser.add_argument("--history", nargs="+", type=int, default=[0, 1, 2, 3, 4, 5])
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--dtype", default="fp32", choices=["fp32", "bf16"])
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--warmup", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=None)
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    device = torch.device(args.device)
+    if device.type == "cuda":
+        machine = torch.cuda.get_device_name(device)
+    else:
+        machine = f"{platform.processor() or platform.machine()}, {torch.get_num_threads()} threads"
+    print(f"Bi²Lane inference, {args.dtype}, {machine}; medians over {args.frames} frames after {args.warmup}")
+    print("| config | history frames | cached ms | cached FPS | uncached ms | uncached FPS |")
+    print("|---|---:|---:|---:|---:|---:|")
+    rows = []
+    for config in args.configs:
+        mine = run(config, args.history, args, device)
+        rows += mine
+        by = {(r["history_frames"], r["mode"]): r for r in mine}
+        for n in args.history:
+            c, u = by[(n, "cached")], by[(n, "uncached")]
+            print(f"| {config} | {n} | {c['ms']:.1f} | {c['fps']:.1f} | {u['ms']:.1f} | {u['fps']:.1f} |")
+        if {1, 5} <= set(args.history):
+            for mode in ("cached", "uncached"):
+                growth = by[(5, mode)]["ms"] / by[(1, mode)]["ms"] - 1
+                print(f"{config}, {mode}: 5 history frames cost {100 * growth:+.0f} % over 1 (paper: +52 %)")
+    if args.json:
+        args.json.write_text(json.dumps({"machine": machine, "dtype": args.dtype, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

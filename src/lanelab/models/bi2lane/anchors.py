@@ -1,0 +1,83 @@
+"""Bi²Lane's 3D anchors: their families, their projection into a frame's front-view features and
+the sampling of those features there (eq. 1), and their motion from frame to frame (eq. 3).
+
+The paper defines the i-th anchor as M 3D points at fixed y (§III-A.1) and says no more; as
+Anchor3DLane (whose anchors and projection the paper builds on) each anchor is a straight ray
+from a start x on the ground at y = 0, turned by a yaw and raised by a pitch:
+    x(y) = x_start + y tan(yaw),   z(y) = y tan(pitch),
+one anchor per (start x, pitch, yaw) of the configured families, in that order, keeping those
+with at least half of their points inside the lateral range (Anchor3DLane's cut).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor
+
+from lanelab.geometry import compose, invert, project_lane_points, transform_points
+
+# Normalised sampling coordinate of points behind the camera: outside [-1, 1], so grid_sample's
+# zero padding gives them no feature.
+_OUTSIDE = -2.0
+
+
+def anchor_families(
+    y: Tensor, x_range: Sequence[float], num_x: int, yaws: Sequence[float], pitches: Sequence[float]
+) -> Tensor:
+    """Anchors (A, M, 3) = (x, y, z), lane frame, at the longitudinal positions y (M,): start x
+    evenly over x_range (num_x of them), yaws and pitches in degrees (module doc)."""
+    if num_x < 1 or not yaws or not pitches:
+        raise ValueError(f"anchors need num_x >= 1 and at least one yaw and pitch, got {num_x}, {yaws}, {pitches}")
+    low, high = x_range
+    starts = torch.linspace(low, high, num_x, dtype=y.dtype)
+    anchors = []
+    for start in starts.tolist():
+        for pitch in pitches:
+            for yaw in yaws:
+                x = start + y * math.tan(math.radians(yaw))
+                z = y * math.tan(math.radians(pitch))
+                if ((x > low) & (x < high)).float().mean() >= 0.5:
+                    anchors.append(torch.stack([x, y, z], dim=-1))
+    if not anchors:
+        raise ValueError(f"no anchor keeps half of its points inside x_range {tuple(x_range)}")
+    return torch.stack(anchors)
+
+
+def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tuple[int, int]) -> Tensor:
+    """P_g2l of eq. 1: lane-frame points (B, ..., 3) seen by the camera K (B, 3, 3), T_lane_cam
+    (B, 4, 4) of images of image_size (H, W) -> grid_sample coordinates (B, ..., 2) in [-1, 1]
+    over the image (align_corners=False: -1 and 1 are the image's outer edges), outside it for
+    points behind the camera. Computed in float32 at least, outside autocast."""
+    dtype = torch.promote_types(points.dtype, torch.float32)
+    shape = points.shape
+    with torch.autocast(points.device.type, enabled=False):
+        flat = points.reshape(shape[0], -1, 3).to(dtype)
+        uv, _, in_front = project_lane_points(flat, K.to(dtype), T_lane_cam.to(dtype))
+        height, width = image_size
+        grid = torch.stack([2 * uv[..., 0] / width - 1, 2 * uv[..., 1] / height - 1], dim=-1)
+        grid = torch.where(in_front[..., None], grid, torch.full_like(grid, _OUTSIDE))
+    return grid.reshape(*shape[:-1], 2)
+
+
+def sample_features(features: Tensor, grid: Tensor) -> Tensor:
+    """S of eq. 1: feature maps (B, C, h, w) covering the image, bilinearly sampled at grid
+    (B, A, M, 2) of :func:`sampling_grid` -> (B, A, M, C); zero outside the image."""
+    grid = grid.to(features.dtype)
+    sampled = F.grid_sample(features, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    return sampled.permute(0, 2, 3, 1)
+
+
+def ego_motion(T_world_lane_to: Tensor, T_world_lane_from: Tensor) -> Tensor:
+    """T_{from -> to} of eq. 3 (B, 4, 4): maps lane-frame points of one frame into another's,
+    T_world_lane(to)^-1 · T_world_lane(from), in the poses' precision (float64: world
+    coordinates reach kilometres)."""
+    return compose(invert(T_world_lane_to), T_world_lane_from.to(T_world_lane_to))
+
+
+def move_points(T: Tensor, points: Tensor) -> Tensor:
+    """Points (B, A, M, 3) moved by T (B, 4, 4) (e.g. :func:`ego_motion`), in their own dtype."""
+    return transform_points(T.to(points.dtype), points.flatten(1, -2)).reshape(points.shape)
