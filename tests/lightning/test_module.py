@@ -36,7 +36,7 @@ def test_fit_validate_test_and_predict_run(store, tmp_path, name, sampler, num_f
     module = tiny_module(name)
     before = [p.detach().clone() for p in module.net.parameters()]
     dm = data_module(store, sampler, num_frames=num_frames, batch_size=2)
-    trainer = pl.Trainer(fast_dev_run=True, callbacks=[OpenLaneWriter(tmp_path, write_ground_truth=True)], **TRAINER)
+    trainer = pl.Trainer(fast_dev_run=True, callbacks=[OpenLaneWriter(tmp_path, ground_truth=store)], **TRAINER)
     trainer.fit(module, dm)
     assert any(not torch.equal(a, b) for a, b in zip(before, module.net.parameters())), "no optimiser step"
     assert torch.isfinite(trainer.callback_metrics["train/loss"])

@@ -1,5 +1,5 @@
 """A tiny SparseLaneSTP overfits one synthetic clip; its OpenLane files score as the in-loop
-metric does; validation draws pictures. One training run serves the three tests."""
+metric does (to resampling); validation draws pictures. One training run serves the three tests."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     (scores,) = trainer.validate(module, data, verbose=False)
     print(f"\noverfit: {STEPS} steps in {seconds:.1f} s, F1 {scores['val/f1']:.3f}")
 
-    writer = OpenLaneWriter(root / "files", write_ground_truth=True)
+    writer = OpenLaneWriter(root / "files", ground_truth=store)
     pl.Trainer(logger=False, callbacks=[writer], **TRAINER).predict(module, data, return_predictions=False)
     return Run(scores, Path(trainer.log_dir), root / "files", module.pictures["height"])
 
@@ -61,10 +61,13 @@ def test_a_tiny_model_overfits_one_clip(run):
 
 
 def test_openlane_files_score_as_the_in_loop_metric(run):
+    """The files hold the store's lanes, the in-loop metric sees them resampled at data.y_grid
+    (the training targets): the same matches, errors a fraction of a millimetre apart."""
     files = evaluate(run.files / "ground_truth", run.files / "predictions", run.files / "test_list.txt")
     assert files["num_frames"] == 8
     for key, value in files.items():
-        assert run.scores[f"val/{key}"] == pytest.approx(value, rel=1e-6, abs=1e-6), key
+        tolerance = 1e-3 if "_error_" in key else 1e-6  # metres, else counts and fractions
+        assert run.scores[f"val/{key}"] == pytest.approx(value, rel=1e-6, abs=tolerance), key
 
 
 def test_validation_logs_pictures(run):
