@@ -14,9 +14,10 @@ split, its frames in time order. Each frame gets
   cannot be related to one another;
 - ``labeled`` True, and tags: ``openlane.file_path`` (the ground truth's ``file_path``, which
   prediction files repeat); ``openlane.far_to_near``, the lanes the file lists far to near
-  (:mod:`lanelab.openlane.lane_order`: exported ground truth lists them so again); for each scenario list naming the frame, ``<case>: <label>``
-  (``curve: Curve``), so that :func:`lanelab.metrics.scenarios.tag_scenarios` with groups
-  ``{case: "OpenLane"}`` gives the papers' scenario columns; from ``scene.json``,
+  (:mod:`lanelab.openlane.lane_order`: exported ground truth lists them so again); for each
+  scenario list naming the frame, ``<case>: <label>`` (``curve: Curve``), so that
+  :func:`lanelab.metrics.scenarios.tag_scenarios` with groups
+  :data:`~lanelab.metrics.scenarios.OPENLANE_TAG_GROUPS` gives the papers' scenario columns; from ``scene.json``,
   ``environment``, ``weather`` and ``daytime`` (its scene, weather and time), the columns of
   SparseLaneSTP's Table 7.
 

@@ -15,7 +15,7 @@ import yaml
 from omegaconf import OmegaConf
 
 from lanelab.experiment.config import load_train_config
-from lanelab.experiment.sweep_report import PLOT_PNG, REPORT_CSV, REPORT_MD, main
+from lanelab.experiment.sweep_report import PLOT_PNG, REPORT_CSV, REPORT_MD, f1_figure, main
 
 # The sweeps as the installed package holds them (a wheel's lanelab/conf/sweep/, a checkout's conf/sweep/).
 SWEEPS = sorted(path.name.removesuffix(".yaml") for path in (files("lanelab.conf") / "sweep").iterdir()
@@ -30,11 +30,13 @@ def test_the_paper_sweeps_are_shipped() -> None:
 def test_every_swept_value_composes_and_validates(sweep: str, tmp_path: Path) -> None:
     """A swept key that does not exist, or a variant file that does not, fails here and not
     in the middle of a multirun."""
-    params = yaml.safe_load((files("lanelab.conf") / "sweep" / f"{sweep}.yaml").read_text())["hydra"]["sweeper"]["params"]
+    config = yaml.safe_load((files("lanelab.conf") / "sweep" / f"{sweep}.yaml").read_text())
+    params = config["hydra"]["sweeper"]["params"]
     assert params, f"conf/sweep/{sweep}.yaml sweeps nothing"
     for key, values in params.items():
         for value in str(values).split(","):
-            cfg = load_train_config([f"sweep={sweep}", "experiment=tiny", f"paths.output_dir={tmp_path}", f"{key}={value}"])
+            overrides = [f"sweep={sweep}", "experiment=tiny", f"paths.output_dir={tmp_path}", f"{key}={value}"]
+            cfg = load_train_config(overrides)
             if not key.startswith("+"):  # a key of the config (else a group of variant files)
                 assert str(OmegaConf.select(cfg, key)) == value
 
@@ -105,3 +107,12 @@ def test_the_report_shows_the_blind_prior_of_a_shared_store(stores, prior_f1s, e
     with (tmp_path / REPORT_CSV).open() as f:
         assert [row["model.net.num_points"] for row in csv.DictReader(f)] == ["10", "20"]  # the jobs alone
     assert (tmp_path / PLOT_PNG).stat().st_size > 0
+
+
+def test_the_plot_names_its_axes_and_labels_every_value() -> None:
+    figure = f1_figure("model.net.num_points", ["10", "20", "30"], [41.25, 55.0, float("nan")], prior_f1=30.0)
+    (axes,) = figure.axes
+    assert axes.get_title() == "Sweep: F1 against model.net.num_points"
+    assert (axes.get_xlabel(), axes.get_ylabel()) == ("model.net.num_points", "F1 (%)")
+    assert [text.get_text() for text in axes.texts] == ["41.2", "55.0"]  # a job without F1 gets no label
+    assert [text.get_text() for text in axes.get_legend().get_texts()] == ["jobs", "blind prior (30.0)"]

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import cv2
 import lightning.pytorch as pl
+import numpy as np
 import pytest
 from hydra.utils import instantiate
 from lightning.pytorch.loggers import CSVLogger
@@ -17,6 +18,8 @@ from tiny_setup import TRAINER, build_store, data_module, model_config
 
 from lanelab.lightning import OpenLaneWriter
 from lanelab.metrics import evaluate
+from lanelab.viz import GT_COLOR, PREDICTION_COLOR
+from lanelab.viz.panels import strip_height
 
 STEPS = 300  # windowed training, 4 windows of 2 frames a step: 150 passes over the clip
 FAST = ["model.optimizer.lr=2e-3", "model.scheduler.warmup_steps=20", "model.scheduler.min_lr=1e-4"]  # a high lr for a short run
@@ -73,4 +76,6 @@ def test_openlane_files_score_as_the_in_loop_metric(run):
 def test_validation_logs_pictures(run):
     pictures = sorted((run.log_dir / "pictures").glob("val_pictures_step*.png"))
     assert len(pictures) == 2  # model.pictures.num_frames in the tests
-    assert cv2.imread(str(pictures[0])).shape[0] == run.picture_height
+    picture = cv2.imread(str(pictures[0]))
+    assert picture.shape[0] > run.picture_height + 2 * strip_height(run.picture_height)  # with title and legend
+    assert all(np.all(picture == color, axis=-1).any() for color in (GT_COLOR, PREDICTION_COLOR))  # a trained model

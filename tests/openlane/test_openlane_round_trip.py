@@ -75,7 +75,8 @@ def test_the_exported_ground_truth_scores_as_the_source(tiny: TinyOpenLane, stor
         write_prediction(perfect, file_path_of(frame), frame.lanes)
     test_list = evaluated / "test_list.txt"
     for predictions in (perfect, evaluated / "predictions"):
-        official, exported = (evaluate(gt, predictions, test_list) for gt in (tiny.annotations, evaluated / "ground_truth"))
+        official, exported = (evaluate(gt, predictions, test_list)
+                              for gt in (tiny.annotations, evaluated / "ground_truth"))  # fmt: skip
         assert official == pytest.approx(exported, abs=1e-6, nan_ok=True)  # errors: the store's float32 metres
     assert evaluate(evaluated / "ground_truth", perfect, test_list)["f1"] == pytest.approx(1.0)
 

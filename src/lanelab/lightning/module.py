@@ -197,7 +197,8 @@ class LaneDetectionModule(pl.LightningModule):
         for b in scored.nonzero()[:, 0][: self.pictures["num_frames"]].tolist():
             lanes = predictions.lanes(b, visible_only=False), ground_truth.lanes(b, visible_only=True)
             camera = batch["images"][b, -1], batch["K"][b, -1], batch["T_lane_cam"][b, -1]
-            pictures.append(prediction_picture(*camera, *lanes, *view))
+            title = f"{batch['clip_id'][b]} frame {int(batch['frame_index'][b, -1])}, step {self.global_step}"
+            pictures.append(prediction_picture(*camera, *lanes, *view, title))
         log_pictures(self.trainer, "val/pictures", pictures)
 
     # --------------------------------------------------------------- prediction
