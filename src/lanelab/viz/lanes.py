@@ -140,34 +140,33 @@ class TopView:
         v = (1.0 - (y - self.y_range[0]) / (self.y_range[1] - self.y_range[0])) * (height - 1)
         return np.stack([u, v], -1)
 
-    def canvas(self) -> np.ndarray:
+    def canvas(self, title_height: int = 0) -> np.ndarray:
+        """The empty view; no y label in its top title_height pixels (where a title goes)."""
         height, width = self.size
         plot_height = height - self.axis_height
         canvas = np.full((height, width, 3), 30, np.uint8)
         canvas[plot_height:] = 15
         scale = min(0.35, max(0.25, self.axis_height / 40))
-        # The grid every 10 m (5 m on narrow ranges); labels as often as they fit side by side.
-        span = self.x_range[1] - self.x_range[0]
-        x_step = 10.0 if span >= 30 else 5.0
-        label_width = cv2.getTextSize(f"{-max(abs(v) for v in self.x_range):.0f}m", _FONT, scale, 1)[0][0] + 6
-        steps = (x_step, 2 * x_step, 3 * x_step, 5 * x_step)
-        label_step = next((step for step in steps if step / span * width >= label_width), 10 * x_step)
-        free_from = 0  # the first column right of the last label: labels never overlap
-        for x in np.arange(np.ceil(self.x_range[0] / x_step) * x_step, self.x_range[1] + 1e-6, x_step):
+        # The grid every 10 m (5 m on narrow ranges); labelled from x = 0 outwards, each label
+        # where it overlaps none placed before.
+        x_step = 10.0 if self.x_range[1] - self.x_range[0] >= 30 else 5.0
+        ticks = np.arange(np.ceil(self.x_range[0] / x_step) * x_step, self.x_range[1] + 1e-6, x_step)
+        placed: list[tuple[int, int]] = []
+        for x in sorted(ticks, key=abs):
             u = int(round(self.pixels(np.array(x), np.array(self.y_range[0]))[0]))
             cv2.line(canvas, (u, 0), (u, plot_height - 1), _GRID, 1)
-            if self.axis_height and abs(x / label_step - round(x / label_step)) < 1e-6:
-                label = f"{x:.0f}m"
-                (w, h), _ = cv2.getTextSize(label, _FONT, scale, 1)
-                left = min(max(u - w // 2, 0), width - w)
-                if left >= free_from:
-                    cv2.putText(canvas, label, (left, plot_height + (self.axis_height + h) // 2), _FONT, scale,
-                                _TICK_TEXT, 1, cv2.LINE_AA)  # fmt: skip
-                    free_from = left + w + 4
+            label = f"{x:.0f}m"
+            (w, h), _ = cv2.getTextSize(label, _FONT, scale, 1)
+            left = min(max(u - w // 2, 0), width - w)
+            if self.axis_height and all(left + w + 3 <= start or left >= stop + 3 for start, stop in placed):
+                cv2.putText(canvas, label, (left, plot_height + (self.axis_height + h) // 2), _FONT, scale,
+                            _TICK_TEXT, 1, cv2.LINE_AA)  # fmt: skip
+                placed.append((left, left + w))
         for y in np.arange(np.ceil(self.y_range[0] / 50) * 50, self.y_range[1] + 1e-6, 50.0):
             v = int(round(self.pixels(np.array(self.x_range[0]), np.array(y))[1]))
             cv2.line(canvas, (0, v), (width - 1, v), _GRID, 1)
-            cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, 10)), _FONT, 0.3, _TICK_TEXT, 1, cv2.LINE_AA)
+            if max(v - 2, 10) - 8 >= title_height:  # the label's top row
+                cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, 10)), _FONT, 0.3, _TICK_TEXT, 1, cv2.LINE_AA)
         ego = self.pixels(np.array(0.0), np.array(max(self.y_range[0], 0.0)))
         cv2.circle(canvas, (int(ego[0]), int(min(ego[1], plot_height - 4))), 3, (0, 255, 0), -1)
         return canvas
@@ -195,7 +194,7 @@ def draw_top_view(
     """Bird's-eye view (H, W, 3) of lanes in the lane frame (:class:`TopView`), in their
     category colours, hidden parts thin; an optional title at the top left."""
     view = TopView(size, x_range, y_range)
-    canvas = view.draw(view.canvas(), lanes)
+    canvas = view.draw(view.canvas(title_height=18 if title else 0), lanes)
     if title:
         cv2.putText(canvas, title, (4, 14), _FONT, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
     return canvas

@@ -24,6 +24,7 @@ import numpy as np
 from lanelab.lanes import LANE_CATEGORY_NAMES, Lane
 from lanelab.viz.lanes import (
     GT_COLOR,
+    Color,
     HIDDEN_COLOR,
     PREDICTION_COLOR,
     TopView,
@@ -119,12 +120,12 @@ def legend(width: int, categories: Iterable[int], height: int) -> np.ndarray:
     and OpenLane name). height: the row height it goes under (sizes the text)."""
     line_height = strip_height(height) + 4
     scale = max((line_height - 10) / 30, _SMALLEST_SCALE)
-    entries: list[tuple[str, tuple[int, int, int], int]] = [
+    entries: list[tuple[str, Color, int]] = [  # name, colour, line width
         ("ground truth", GT_COLOR, 4), ("prediction", PREDICTION_COLOR, 2), ("hidden part", HIDDEN_COLOR, 1),
     ]  # fmt: skip
     entries += [(LANE_CATEGORY_NAMES.get(c, f"category {c}"), category_color(c), 3) for c in sorted(set(categories))]
     swatch = 2 * line_height
-    lines: list[list[tuple[int, tuple[str, tuple[int, int, int], int]]]] = [[]]
+    lines: list[list[tuple[int, tuple[str, Color, int]]]] = [[]]  # per line: (left, entry)
     left = 4
     for entry in entries:
         entry_width = swatch + 6 + cv2.getTextSize(entry[0], _FONT, scale, 1)[0][0] + 14
