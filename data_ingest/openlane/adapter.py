@@ -13,9 +13,11 @@ split, its frames in time order. Each frame gets
   frame and is listed under ``clips_without_pose`` in the manifest's options: its frames
   cannot be related to one another;
 - ``labeled`` True, and tags: ``openlane.file_path`` (the ground truth's ``file_path``, which
-  prediction files repeat); for each scenario list naming the frame, ``<case>: <label>``
-  (``curve: Curve``), so that :func:`lanelab.metrics.scenarios.tag_scenarios` with groups
-  ``{case: "OpenLane"}`` gives the papers' scenario columns; from ``scene.json``,
+  prediction files repeat); ``openlane.far_to_near``, the lanes the file lists far to near
+  (:mod:`lanelab.openlane.lane_order`: exported ground truth lists them so again); for each
+  scenario list naming the frame, ``<case>: <label>`` (``curve: Curve``), so that
+  :func:`lanelab.metrics.scenarios.tag_scenarios` with groups
+  :data:`~lanelab.metrics.scenarios.OPENLANE_TAG_GROUPS` gives the papers' scenario columns; from ``scene.json``,
   ``environment``, ``weather`` and ``daytime`` (its scene, weather and time), the columns of
   SparseLaneSTP's Table 7.
 
@@ -42,6 +44,7 @@ from data_ingest.openlane.config import OpenLaneAdapterConfig
 from lanelab.config_checks import ConfigError
 from lanelab.json_files import LaneFileError, load_json_object
 from lanelab.openlane.file_paths import FILE_PATH_TAG
+from lanelab.openlane.lane_order import far_to_near_tag
 from lanelab.openlane.lists import OPENLANE_SCENARIOS, read_scenario_lists
 from lanelab.store import (
     MADE_BY_OPTION,
@@ -160,7 +163,7 @@ def _frames(
             T_world_lane=annotation.T_world_lane if has_pose else np.eye(4),
             labeled=True,
             lanes=annotation.lanes,
-            tags={FILE_PATH_TAG: annotation.file_path, **frame_tags},
+            tags={FILE_PATH_TAG: annotation.file_path, **far_to_near_tag(annotation.far_to_near), **frame_tags},
         )
 
 

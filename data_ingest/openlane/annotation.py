@@ -57,7 +57,8 @@ class Annotation:
 
     K: (3, 3). T_lane_cam: (4, 4), OpenCV camera -> lane frame. T_world_lane: (4, 4) ego
     pose, None when the file has no ``pose``. lanes: in the lane frame, y ascending, lanes
-    with fewer than two points left out (no line; the evaluator drops them too).
+    with fewer than two points left out (no line; the evaluator drops them too). far_to_near:
+    the indices of the lanes the file lists far to near (:mod:`lanelab.openlane.lane_order`).
     """
 
     file_path: str
@@ -66,6 +67,7 @@ class Annotation:
     T_lane_cam: np.ndarray
     T_world_lane: np.ndarray | None
     lanes: list[Lane]
+    far_to_near: tuple[int, ...] = ()
 
 
 def timestamp_ns(path: str | os.PathLike[str]) -> int:
@@ -100,17 +102,20 @@ def read_annotation(path: str | os.PathLike[str]) -> Annotation:
         _lane(lane, T_lane_cam, path, f"lane_lines[{i}]")
         for i, lane in enumerate(require_list(data, "lane_lines", path))
     ]
+    kept = [(lane, far_to_near) for lane, far_to_near in lanes if len(lane.points) >= 2]
     return Annotation(
         file_path=file_path,
         timestamp_ns=timestamp_ns(path),
         K=K,
         T_lane_cam=T_lane_cam,
         T_world_lane=T_world_lane,
-        lanes=[lane for lane in lanes if len(lane.points) >= 2],
+        lanes=[lane for lane, _ in kept],
+        far_to_near=tuple(i for i, (_, far_to_near) in enumerate(kept) if far_to_near),
     )
 
 
-def _lane(lane: Any, T_lane_cam: np.ndarray, path: str | os.PathLike[str], where: str) -> Lane:
+def _lane(lane: Any, T_lane_cam: np.ndarray, path: str | os.PathLike[str], where: str) -> tuple[Lane, bool]:
+    """The lane near to far, and whether the file lists it far to near."""
     xyz = numeric_array(require(lane, "xyz", path, where), (3, None), f"{where}.xyz", path)
     visibility = numeric_array(require(lane, "visibility", path, where), (None,), f"{where}.visibility", path)
     if len(visibility) != xyz.shape[1]:
@@ -122,7 +127,7 @@ def _lane(lane: Any, T_lane_cam: np.ndarray, path: str | os.PathLike[str], where
         category=_integer(require(lane, "category", path, where), f"{where}.category", path),
         points=points[order].astype(np.float32),
         visibility=visibility[order].astype(np.float32),
-    )
+    ), len(points) >= 2 and points[0, 1] > points[-1, 1]
 
 
 def _integer(value: Any, what: str, path: str | os.PathLike[str]) -> int:

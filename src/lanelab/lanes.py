@@ -11,6 +11,13 @@ import numpy as np
 # OpenLane's lane category ids, in the order of the detectors' classifier outputs.
 LANE_CATEGORY_IDS: tuple[int, ...] = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 20, 21)
 LEFT_CURBSIDE, RIGHT_CURBSIDE = 20, 21
+# Their names (DESIGN.md), for legends and tables.
+LANE_CATEGORY_NAMES: dict[int, str] = {
+    0: "unknown", 1: "white dash", 2: "white solid", 3: "double white dash", 4: "double white solid",
+    5: "white ldash-rsolid", 6: "white lsolid-rdash", 7: "yellow dash", 8: "yellow solid",
+    9: "double yellow dash", 10: "double yellow solid", 11: "yellow ldash-rsolid", 12: "yellow lsolid-rdash",
+    20: "left curbside", 21: "right curbside",
+}  # fmt: skip
 NO_TRACK = -1  # track id of a lane without identity (an OpenLane lane without ``track_id``, a prediction)
 
 

@@ -1,22 +1,20 @@
-"""The sweeps of Bi²Lane's Tables III-VII (sweeps/bi2lane_*.yaml): every job of each composes on the
+"""The sweeps of Bi²Lane's Tables III-VII (conf/sweep/bi2lane_*.yaml): every job of each composes on the
 tiny preset, passes the config checks, builds its net, and differs from the others in what the
 table varies."""
 
 from __future__ import annotations
 
-from pathlib import Path
+from importlib.resources import files
 
 import pytest
 import yaml
-from hydra import compose, initialize_config_dir
 from hydra.utils import instantiate
 
-from lanelab.config_checks import register_schema
-from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
+from lanelab.experiment.config import load_train_config
 
-SWEEPS = Path(__file__).resolve().parents[2] / "sweeps"
+SWEEPS = files("lanelab.conf") / "sweep"
 TABLES = {
-    "bi2lane_modules": "+bi2lane_modules",  # III
+    "bi2lane_modules": "+sweep/bi2lane_modules",  # III
     "bi2lane_feature_level": "model.net.aggregation",  # IV
     "bi2lane_direction": "model.net.direction",  # V
     "bi2lane_history_frames": "model.net.num_history_frames",  # VI
@@ -31,13 +29,9 @@ def swept_values(name: str) -> list[str]:
 
 @pytest.mark.parametrize("name", sorted(TABLES))
 def test_every_job_of_each_table_builds_the_variant_it_names(name):
-    register_schema(SCHEMA_NAME, TrainConfig)
     nets = []
     for value in swept_values(name):
-        overrides = ["hydra.searchpath=[pkg://lanelab.conf]", "experiment=tiny", "paths.output_dir=unused"]
-        with initialize_config_dir(config_dir=str(SWEEPS), version_base="1.3"):  # as lanelab-train --config-dir sweeps
-            cfg = compose(name, overrides=[*overrides, f"{TABLES[name]}={value}"])
-        validate(cfg)
+        cfg = load_train_config([f"sweep={name}", "experiment=tiny", "paths.output_dir=unused", f"{TABLES[name]}={value}"])
         assert cfg.model.net._target_ == "lanelab.models.Bi2Lane"
         net = cfg.model.net
         nets.append((net.num_history_frames, net.direction, net.aggregation, net.temporal_alignment))

@@ -15,6 +15,8 @@ from lightning.pytorch.loggers import CSVLogger
 from tiny_setup import TRAINER, build_store, data_module, model_config
 
 from lanelab.lightning import LaneDetectionModule, OpenLaneWriter, PredictionBatch
+from lanelab.viz import GT_COLOR
+from lanelab.viz.panels import strip_height
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +38,7 @@ def test_fit_validate_test_and_predict_run(store, tmp_path, name, sampler, num_f
     module = tiny_module(name)
     before = [p.detach().clone() for p in module.net.parameters()]
     dm = data_module(store, sampler, num_frames=num_frames, batch_size=2)
-    trainer = pl.Trainer(fast_dev_run=True, callbacks=[OpenLaneWriter(tmp_path, write_ground_truth=True)], **TRAINER)
+    trainer = pl.Trainer(fast_dev_run=True, callbacks=[OpenLaneWriter(tmp_path, ground_truth=store)], **TRAINER)
     trainer.fit(module, dm)
     assert any(not torch.equal(a, b) for a, b in zip(before, module.net.parameters())), "no optimiser step"
     assert torch.isfinite(trainer.callback_metrics["train/loss"])
@@ -118,5 +120,8 @@ def test_validation_gives_pictures_to_a_logger_that_takes_images(store, tmp_path
     logger, module = ImageLogger(tmp_path), tiny_module()
     pl.Trainer(logger=logger, **TRAINER).validate(module, data_module(store, "window", num_frames=2, batch_size=3))
     pictures = logger.images["val/pictures"]
-    assert len(pictures) == 2 and pictures[0].shape[0] == module.pictures["height"] and pictures[0].dtype == np.uint8
+    assert len(pictures) == 2 and pictures[0].dtype == np.uint8
+    height = module.pictures["height"]
+    assert pictures[0].shape[0] > height + 2 * strip_height(height)  # title, captions, panels, legend
+    assert np.all(pictures[0] == GT_COLOR[::-1], axis=-1).any()  # the ground truth, RGB
     assert not list(tmp_path.rglob("*.png"))  # given to the logger, not written

@@ -6,7 +6,7 @@ import torch
 from lanelab.geometry.camera import project_lane_points
 from lanelab.lanes import Lane
 from lanelab.viz import CATEGORY_COLORS, draw_lanes_on_image, draw_top_view
-from lanelab.viz.lanes import HIDDEN_COLOR
+from lanelab.viz.lanes import HIDDEN_COLOR, TopView
 
 K = np.array([[400.0, 0, 320], [0, 400, 240], [0, 0, 1]])
 # camera 1.5 m above the lane-frame origin, looking along +y (lane frame: x right, y forward, z up)
@@ -50,9 +50,22 @@ def test_points_behind_the_camera_are_not_drawn_through_the_mirror():
 
 
 def test_top_view_puts_x_zero_in_the_middle_column_and_far_at_the_top():
-    view = draw_top_view([straight_lane(0.0, 2)], size=(400, 201), x_range=(-20, 20), y_range=(0, 200))
+    view = draw_top_view([straight_lane(0.0, 2)], size=(414, 201), x_range=(-20, 20), y_range=(0, 200))
     color = np.array(CATEGORY_COLORS[2])
     rows, cols = np.nonzero((view == color).all(-1))
     assert abs(np.median(cols) - 100) <= 1
-    # y from 3 m to 60 m maps to rows 394 .. 280
-    assert 270 <= rows.min() <= 290 and rows.max() >= 385
+    # the plot above the 14-pixel x axis: y from 3 m to 60 m maps to rows 394 .. 280
+    assert 270 <= rows.min() <= 290 and 385 <= rows.max() < 400
+
+
+def test_top_view_labels_its_x_axis_in_metres_under_the_plot():
+    view = TopView((214, 200), (-20.0, 20.0), (0.0, 100.0), axis_height=14)
+    canvas = view.canvas()
+    axis = canvas[200:]
+    text = (axis.max(-1) > 100).any(0)  # label pixels, brighter than the strip and the grid
+    for x in (-20.0, -10.0, 0.0, 10.0, 20.0):  # "-20m" .. "20m" centred under their grid lines
+        u = int(round(view.pixels(np.array(x), np.array(0.0))[0]))
+        assert text[max(u - 6, 0) : u + 7].any(), x
+    y = np.linspace(-20, 50, 30)  # reaching behind the ego, below the plot: lanes stay off the axis
+    behind = Lane(np.stack([np.zeros_like(y), y, np.zeros_like(y)], -1), np.ones(30), 2)
+    np.testing.assert_array_equal(view.draw(canvas.copy(), [behind])[200:], axis)

@@ -1,9 +1,11 @@
 """Pictures of evaluated frames: ground truth and prediction over the camera image and in a
 top view, one row per frame, so that a reader sees what the numbers stand for.
 
-A row is ``[image + GT | image + prediction | top view of GT | top view of prediction]``,
-drawn with :mod:`lanelab.viz` (lanes in their category colours, parts the lane marks
-invisible in thin red). Predictions from OpenLane files hold only visible points.
+A row is :func:`lanelab.viz.panels.comparison_row`'s: the frame's name over
+``[image + GT | image + prediction | image + GT vs prediction | top view of GT vs prediction]``
+(categories in their colours, then ground truth green against prediction magenta, the top
+view in metres); a legend of the colours closes the picture. Predictions from OpenLane files
+hold only visible points.
 """
 
 from __future__ import annotations
@@ -19,11 +21,11 @@ import numpy as np
 from lanelab.atomic_file import atomic_output
 from lanelab.json_files import LaneFileError
 from lanelab.lanes import Lane
+from lanelab.openlane.lists import frame_key
 from lanelab.openlane.read import read_ground_truth, read_prediction
-from lanelab.viz import draw_lanes_on_image, draw_top_view
+from lanelab.viz.panels import categories_of, comparison_row, stack_rows
 
 TOP_VIEW_X_RANGE = (-15.0, 15.0)  # metres: the evaluated |x| < 10 and a margin
-_TEXT_COLOR, _SHADOW_COLOR = (255, 255, 255), (0, 0, 0)
 
 
 @dataclass(frozen=True)
@@ -47,25 +49,16 @@ def pick_frames(num_frames: int, wanted: int) -> list[int]:
 
 
 def draw_row(frame: PictureFrame, height: int, y_range: tuple[float, float]) -> np.ndarray:
-    """One frame's row (height, W, 3): image scaled to `height`, top views over y_range."""
-    scale = height / frame.image.shape[0]
-    image = cv2.resize(frame.image, (round(frame.image.shape[1] * scale), height), interpolation=cv2.INTER_AREA)
-    # Pixel coordinates are continuous with pixel edges at integers, so scaling them is exact.
-    K = np.diag([scale, scale, 1.0]) @ frame.K
-    top_view_size = (height, height // 2)
-    return np.hstack([
-        _label(draw_lanes_on_image(image, frame.gt, K, frame.T_lane_cam), f"GT  {frame.title}"),
-        _label(draw_lanes_on_image(image, frame.pred, K, frame.T_lane_cam), "prediction"),
-        draw_top_view(frame.gt, top_view_size, TOP_VIEW_X_RANGE, y_range, title="GT"),
-        draw_top_view(frame.pred, top_view_size, TOP_VIEW_X_RANGE, y_range, title="prediction"),
-    ])
+    """One frame's row (captions + height, W, 3): image scaled to `height`, top view over y_range."""
+    return comparison_row(frame.image, frame.K, frame.T_lane_cam, frame.gt, frame.pred, height, TOP_VIEW_X_RANGE,
+                          y_range, frame.title)  # fmt: skip
 
 
 def draw_pictures(frames: Sequence[PictureFrame], height: int, y_range: tuple[float, float]) -> np.ndarray:
-    """The rows of frames stacked (N * height, W, 3), narrower rows padded black on the right."""
+    """The rows of frames stacked (narrower rows padded black on the right) over a legend of
+    the categories drawn."""
     rows = [draw_row(frame, height, y_range) for frame in frames]
-    width = max(row.shape[1] for row in rows)
-    return np.vstack([np.pad(row, ((0, 0), (0, width - row.shape[1]), (0, 0))) for row in rows])
+    return stack_rows(rows, categories_of(*(frame.gt for frame in frames), *(frame.pred for frame in frames)), height)
 
 
 def write_png(path: str | os.PathLike[str], picture: np.ndarray) -> Path:
@@ -102,7 +95,7 @@ def read_openlane_frame(
         if image is None:
             raise LaneFileError(image_path, f"cannot read the image of {gt_path}")
     return PictureFrame(
-        title=Path(frame_id).stem,
+        title=frame_key(frame_id),
         image=image,
         K=K,
         T_lane_cam=T_lane_cam,
@@ -116,10 +109,3 @@ def _with_z(lane: np.ndarray) -> np.ndarray:
     points = np.zeros((len(lane), 3))
     points[:, : min(lane.shape[1], 3)] = lane[:, :3]
     return points
-
-
-def _label(panel: np.ndarray, text: str) -> np.ndarray:
-    """panel with text written in its top-left corner, shadowed so that it reads on any image."""
-    for color, thickness in ((_SHADOW_COLOR, 3), (_TEXT_COLOR, 1)):
-        cv2.putText(panel, text, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, color, thickness, cv2.LINE_AA)
-    return panel

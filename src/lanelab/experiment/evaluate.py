@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
 import lightning.pytorch as pl
 import numpy as np
@@ -41,12 +41,22 @@ from lanelab.experiment.config import validate
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.metrics.openlane import evaluate_frames
-from lanelab.metrics.scenarios import TABLE7_GROUPS, tag_scenarios
+from lanelab.metrics.scenarios import OPENLANE_TAG_GROUPS, TABLE7_GROUPS, tag_scenarios
+from lanelab.openlane.file_paths import FILE_PATH_TAG, frame_id, store_file_path
 from lanelab.store import ClipStore
 from lanelab.store.image_codec import decode_image
 
 # Table 7's scenario groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
 SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}
+
+
+@dataclasses.dataclass(frozen=True)
+class StoreFrame:
+    """Where an evaluated frame lies in its store, and its scenario tags."""
+
+    clip_id: str
+    timestamp_ns: int
+    tags: dict[str, str]
 
 
 def evaluate(
@@ -64,7 +74,7 @@ def evaluate(
     there) of the datamodule's store. Returns the report on rank zero.
     """
     out = Path(options.out)
-    writer = OpenLaneWriter(out, write_ground_truth=True)
+    writer = OpenLaneWriter(out, ground_truth=datamodule.store)
     trainer.callbacks.append(writer)
     try:
         trainer.predict(module, datamodule=datamodule, ckpt_path=ckpt_path, return_predictions=False)
@@ -75,8 +85,10 @@ def evaluate(
 
     results = evaluate_frames(out / GROUND_TRUTH, out / PREDICTIONS, out / TEST_LIST, module.metric_config)
     store = ClipStore(datamodule.store)
-    tags = frame_tags(store, {_clip_id(frame) for frame, _ in results})
-    scenarios = tag_scenarios({frame: tags.get(frame, {}) for frame, _ in results}, SCENARIO_GROUPS)
+    frames = store_frames(store, datamodule.splits["predict"])
+    tags = {frame: frames[frame].tags for frame, _ in results}
+    from_openlane = any(FILE_PATH_TAG in frame_tags for frame_tags in tags.values())
+    scenarios = tag_scenarios(tags, OPENLANE_TAG_GROUPS if from_openlane else SCENARIO_GROUPS)
     reference = None
     if options.get("blind_prior", True):
         stores = [store for store in (options.get("prior_store"), datamodule.store) if store]
@@ -88,9 +100,9 @@ def evaluate(
 
     chosen = [results[i][0] for i in pick_frames(len(results), options.num_pictures)]
     if chosen:
-        frames = [_picture_frame(store, out, frame) for frame in chosen]
+        pictures = [_picture_frame(store, out, frame, frames[frame]) for frame in chosen]
         y_range = (0.0, float(module.metric_config.y_range[1]))
-        written.append(write_png(out / PICTURES_PNG, draw_pictures(frames, options.picture_height, y_range)))
+        written.append(write_png(out / PICTURES_PNG, draw_pictures(pictures, options.picture_height, y_range)))
     print("wrote " + ", ".join(str(path) for path in written))
     return report
 
@@ -133,27 +145,22 @@ def evaluate_checkpoint(
     return json.loads((Path(out) / REPORT_JSON).read_text())
 
 
-def frame_tags(store: ClipStore, clip_ids: set[str]) -> dict[str, dict[str, str]]:
-    """Frame id (as the test list names it, "<clip_id>/<timestamp_ns>.json") -> its scenario
-    tags, read from the clip files' ``tags`` column alone."""
-    tags = {}
-    for clip_id in sorted(clip_ids):
-        for timestamp, frame_tags in store.read_tags(clip_id):
-            tags[f"{clip_id}/{timestamp}.json"] = frame_tags
-    return tags
+def store_frames(store: ClipStore, split: str) -> dict[str, StoreFrame]:
+    """Frame id (as the test list names it: :func:`~lanelab.openlane.file_paths.frame_id` of the
+    frame's ``file_path``) -> the frame of the split's clips, read from their ``tags`` column alone."""
+    frames = {}
+    for clip in store.clips_in(split):
+        for timestamp, tags in store.read_tags(clip.clip_id):
+            frames[frame_id(store_file_path(clip.clip_id, timestamp, tags))] = StoreFrame(clip.clip_id, timestamp, tags)
+    return frames
 
 
-def _clip_id(frame: str) -> str:
-    return PurePosixPath(frame).parent.as_posix()
-
-
-def _picture_frame(store: ClipStore, out: Path, frame: str) -> PictureFrame:
+def _picture_frame(store: ClipStore, out: Path, frame: str, where: StoreFrame) -> PictureFrame:
     """The evaluated frame's lanes from the files, drawn on the store's camera image (with its
-    own K and T_lane_cam: the files hold the model input's)."""
+    own K and T_lane_cam, as the ground-truth files hold them)."""
     picture = read_openlane_frame(out / GROUND_TRUTH, out / PREDICTIONS, frame, None)
-    timestamp, clip_id = int(PurePosixPath(frame).stem), _clip_id(frame)
-    records = store.read_frames(clip_id)
-    record = next(r for r in records if r.timestamp_ns == timestamp)
+    records = store.read_frames(where.clip_id)
+    record = next(r for r in records if r.timestamp_ns == where.timestamp_ns)
     image = np.ascontiguousarray(decode_image(record)[..., ::-1])  # RGB -> BGR
-    title = f"{clip_id} {(timestamp - records[0].timestamp_ns) / 1e9:.1f} s"  # time into the clip
+    title = f"{where.clip_id} {(where.timestamp_ns - records[0].timestamp_ns) / 1e9:.1f} s"  # time into the clip
     return dataclasses.replace(picture, title=title, image=image, K=record.K, T_lane_cam=record.T_lane_cam)

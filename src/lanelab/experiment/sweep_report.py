@@ -10,7 +10,7 @@ between jobs (the swept keys), and writes into the multirun folder (or ``--out``
   errors per range (test metrics where the jobs tested, else the last validation's), as in
   SparseLaneSTP's Tables 2 and 3;
 - ``sweep_report.csv``: the same numbers, unrounded (fractions in [0, 1], errors in metres);
-- ``sweep_f1.png``: F1 against the swept value (matplotlib if installed, else OpenCV).
+- ``sweep_f1.png``: F1 against the swept value, each point labelled with its F1 (matplotlib).
 
 When the jobs ran their evaluation (``evaluation.enabled=true``), ``metrics.json`` also holds
 the blind prior's scores (``blind_prior/<metric>``: the training split's mean lane layout,
@@ -33,15 +33,17 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import cv2
-import numpy as np
 import yaml
 
 from lanelab.atomic_file import atomic_output
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
 from lanelab.metrics.openlane import DETECTION_SCORES
 from lanelab.metrics.scenarios import markdown_table
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 REPORT_MD, REPORT_CSV, PLOT_PNG = "sweep_report.md", "sweep_report.csv", "sweep_f1.png"
 BLIND_PRIOR_ROW = "blind prior"  # the reference row's label (lanelab.evaluation.blind_prior.NAME)
@@ -160,73 +162,41 @@ def write_report(multirun: Path, out: Path) -> list[Path]:
 
 
 def plot_f1(path: Path, x_name: str, labels: list[str], f1: list[float], prior_f1: float | None = None) -> None:
-    """F1 (%) against the swept values: a line over numbers, points over names; the blind
-    prior's F1 (%), if given, as a dashed horizontal line."""
-    numeric = all(_is_number(label) for label in labels)
-    x = [float(label) for label in labels] if numeric else list(range(len(labels)))
-    if prior_f1 is not None and not math.isfinite(prior_f1):
-        prior_f1 = None
-    try:
-        import matplotlib
-    except ImportError:
-        _plot_with_opencv(path, x_name, labels, x, f1, prior_f1)
-        return
-    matplotlib.use("Agg")
+    """Write :func:`f1_figure` as a PNG."""
     import matplotlib.pyplot as plt
 
-    figure, axes = plt.subplots(figsize=(6, 4), dpi=100)
-    axes.plot(x, f1, "o-" if numeric else "o", label="jobs")
-    if prior_f1 is not None:
-        axes.axhline(prior_f1, color="grey", linestyle="--", label=BLIND_PRIOR_ROW)
-        axes.legend()
-    axes.set_xticks(x, labels)
-    axes.set(xlabel=x_name, ylabel="F1 (%)", title="F1 against " + x_name)
-    axes.grid(alpha=0.3)
-    figure.tight_layout()
+    figure = f1_figure(x_name, labels, f1, prior_f1)
     with atomic_output(path) as tmp:
         figure.savefig(tmp, format="png")
     plt.close(figure)
 
 
-def _plot_with_opencv(
-    path: Path, x_name: str, labels: list[str], x: list[float], f1: list[float], prior_f1: float | None = None
-) -> None:
-    width, height, margin = 600, 400, 60
-    canvas = np.full((height, width, 3), 255, np.uint8)
-    black, grey, blue = (0, 0, 0), (200, 200, 200), (180, 110, 30)
-    finite = [v for v in f1 if math.isfinite(v)] + ([prior_f1] if prior_f1 is not None else [])
-    finite = finite or [0.0]
-    y_low, y_high = max(min(finite) - 1.0, 0.0), max(finite) + 1.0
-    x_low, x_high = min(x), max(x) if max(x) > min(x) else min(x) + 1.0
+def f1_figure(x_name: str, labels: list[str], f1: list[float], prior_f1: float | None = None) -> Figure:
+    """F1 (%) against the swept values (labels, one per job): a line over numbers, points over
+    names, each point labelled with its F1; the blind prior's F1 (%), if given, as a dashed
+    horizontal line. A titled matplotlib figure with named axes."""
+    import matplotlib
 
-    def pixel(xv: float, yv: float) -> tuple[int, int]:
-        u = margin + (xv - x_low) / (x_high - x_low) * (width - 2 * margin)
-        v = height - margin - (yv - y_low) / (y_high - y_low) * (height - 2 * margin)
-        return round(u), round(v)
+    matplotlib.use("Agg")  # files only, no display
+    import matplotlib.pyplot as plt
 
-    for yv in np.linspace(y_low, y_high, 5):  # horizontal grid with F1 ticks
-        u, v = pixel(x_low, yv)
-        cv2.line(canvas, (margin, v), (width - margin, v), grey, 1)
-        cv2.putText(canvas, f"{yv:.1f}", (5, v + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1, cv2.LINE_AA)
-    if prior_f1 is not None:  # dashed
-        _, v = pixel(x_low, prior_f1)
-        for u in range(margin, width - margin, 12):
-            cv2.line(canvas, (u, v), (min(u + 6, width - margin), v), (90, 90, 90), 1)
-        cv2.putText(canvas, BLIND_PRIOR_ROW, (width - margin - 80, v - 5), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1)
-    points = [pixel(xv, yv) for xv, yv in zip(x, f1) if math.isfinite(yv)]
-    if len(points) > 1 and all(_is_number(label) for label in labels):
-        cv2.polylines(canvas, [np.array(points, np.int32)], False, blue, 2, cv2.LINE_AA)
-    for point in points:
-        cv2.circle(canvas, point, 4, blue, -1, cv2.LINE_AA)
-    for xv, label in zip(x, labels):
-        u, _ = pixel(xv, y_low)
-        cv2.putText(canvas, label, (u - 4 * len(label), height - margin + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.4, black, 1)
-    cv2.putText(canvas, x_name, (width // 2 - 4 * len(x_name), height - 15), cv2.FONT_HERSHEY_SIMPLEX, 0.5, black, 1)
-    cv2.putText(canvas, "F1 (%)", (5, margin - 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, black, 1)
-    ok, png = cv2.imencode(".png", canvas)
-    assert ok, "PNG encoding of a uint8 picture cannot fail"
-    with atomic_output(path) as tmp:
-        tmp.write_bytes(png.tobytes())
+    numeric = all(_is_number(label) for label in labels)
+    x = [float(label) for label in labels] if numeric else list(range(len(labels)))
+    figure, axes = plt.subplots(figsize=(6, 4), dpi=100)
+    axes.plot(x, f1, "o-" if numeric else "o", color="tab:blue", label="jobs")
+    for xv, value in zip(x, f1):
+        if math.isfinite(value):
+            axes.annotate(f"{value:.1f}", (xv, value), textcoords="offset points", xytext=(0, 7), ha="center",
+                          fontsize=9)  # fmt: skip
+    if prior_f1 is not None and math.isfinite(prior_f1):
+        axes.axhline(prior_f1, color="grey", linestyle="--", label=f"{BLIND_PRIOR_ROW} ({prior_f1:.1f})")
+        axes.legend(loc="best", fontsize=9)
+    axes.set_xticks(x, labels)
+    axes.margins(y=0.15)  # room for the value labels
+    axes.set(xlabel=x_name, ylabel="F1 (%)", title=f"Sweep: F1 against {x_name}")
+    axes.grid(alpha=0.3)
+    figure.tight_layout()
+    return figure
 
 
 def _job_order(folder: Path) -> tuple[int, str]:

@@ -1,7 +1,7 @@
 """``lanelab-train``: compose an experiment from ``conf/`` and run it.
 
     lanelab-train [experiment=NAME] [model=...] [sampler=...] [trainer=...] [logger=...] [key=value ...]
-    lanelab-train --multirun --config-dir sweeps --config-name memory_length experiment=tiny
+    lanelab-train --multirun sweep=memory_length experiment=tiny
 
 Builds the run from the config (:func:`lanelab.experiment.build.build_run`: the datamodule,
 the LightningModule, the callbacks, the loggers and the Trainer), then fits, tests and

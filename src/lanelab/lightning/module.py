@@ -42,7 +42,7 @@ from lanelab.metrics.openlane import OpenLaneConfig
 from lanelab.metrics.openlane_metric import OpenLaneMetric
 from lanelab.models.api import FRAME_KEYS, DetectionOutputs, LaneCriterion, LaneDetector, scored_frames
 from lanelab.models.backbone import load_torchvision_weights
-from lanelab.openlane.file_paths import frame_path
+from lanelab.openlane.file_paths import store_file_path
 
 
 class Pictures(TypedDict):
@@ -204,7 +204,8 @@ class LaneDetectionModule(pl.LightningModule):
         for b in scored.nonzero()[:, 0][: self.pictures["num_frames"]].tolist():
             lanes = predictions.lanes(b, visible_only=False), ground_truth.lanes(b, visible_only=True)
             camera = batch["images"][b, -1], batch["K"][b, -1], batch["T_lane_cam"][b, -1]
-            pictures.append(prediction_picture(*camera, *lanes, *view))
+            title = f"{batch['clip_id'][b]} frame {int(batch['frame_index'][b, -1])}, step {self.global_step}"
+            pictures.append(prediction_picture(*camera, *lanes, *view, title))
         log_pictures(self.trainer, "val/pictures", pictures)
 
     # --------------------------------------------------------------- prediction
@@ -212,14 +213,14 @@ class LaneDetectionModule(pl.LightningModule):
         """Dense lanes of the real frames of the batch (see :class:`PredictionBatch`)."""
         outputs = self(batch)
         real = ~batch["padding"]
-        timestamps = batch["timestamp_ns"][:, -1].tolist()
+        frames = [(clip, int(t), tags) for clip, t, tags, r in
+                  zip(batch["clip_id"], batch["timestamp_ns"][:, -1], batch["tags"], real.tolist()) if r]  # fmt: skip
         return PredictionBatch(
-            file_paths=[frame_path(c, t) for c, t, r in zip(batch["clip_id"], timestamps, real.tolist()) if r],
+            file_paths=[store_file_path(*frame) for frame in frames],
+            clip_ids=[clip for clip, _, _ in frames],
+            frame_indices=batch["frame_index"][real, -1],
             labeled=batch["labeled"][real, -1],
-            K=batch["K"][real, -1],
-            T_lane_cam=batch["T_lane_cam"][real, -1],
             predictions=self._predictions(outputs, batch)[real],
-            ground_truth=ground_truth_lanes(batch)[real],
         )
 
     # ---------------------------------------------------------------- optimiser

@@ -2,14 +2,19 @@
 
 Layout under ``output_dir`` (what :func:`lanelab.metrics.openlane.evaluate` reads)::
 
-    predictions/<clip_id>/<timestamp_ns>.json    every predicted frame
-    ground_truth/<clip_id>/<timestamp_ns>.json   labeled frames (write_ground_truth)
-    test_list.txt                                one "<clip_id>/<timestamp_ns>.jpg" per labeled frame
+    predictions/<file_path>.json    every predicted frame
+    ground_truth/<file_path>.json   labeled frames (with a ground-truth store)
+    test_list.txt                   the labeled frames' file_path, one a line
 
-so that ``evaluate(output_dir / "ground_truth", output_dir / "predictions", output_dir /
-"test_list.txt")`` scores them. The files are :mod:`lanelab.openlane.write`'s: predictions with
-the points of visibility above the metric's threshold and each lane's score, ground truth with
-its visible points.
+where a frame's ``file_path`` is "<clip_id>/<timestamp_ns>.jpg", or for a store made by
+``lanelab-openlane`` the frame's own OpenLane ``file_path`` (``validation/segment-x/<stamp>.jpg``,
+:func:`lanelab.openlane.file_paths.store_file_path`), so that the files line up with the official
+tree and its images. ``evaluate(output_dir / "ground_truth", output_dir / "predictions",
+output_dir / "test_list.txt")`` scores them. The files are :mod:`lanelab.openlane.write`'s:
+predictions with the points of visibility above the metric's threshold and each lane's score;
+ground truth as the store holds it (every point with its visibility, the camera's own K and
+extrinsic; :func:`~lanelab.openlane.lane_order.source_order`), not the model's resampled
+targets, so that an OpenLane store's files give back its source annotations point for point.
 """
 
 from __future__ import annotations
@@ -24,8 +29,10 @@ import torch.distributed as dist
 from lightning.pytorch.callbacks import BasePredictionWriter
 
 from lanelab.lightning.predictions import PredictionBatch
+from lanelab.openlane.lane_order import source_order
 from lanelab.openlane.lists import write_test_list
 from lanelab.openlane.write import write_ground_truth, write_prediction
+from lanelab.store import ClipStore
 
 PREDICTIONS, GROUND_TRUTH, TEST_LIST = "predictions", "ground_truth", "test_list.txt"
 
@@ -33,15 +40,15 @@ PREDICTIONS, GROUND_TRUTH, TEST_LIST = "predictions", "ground_truth", "test_list
 class OpenLaneWriter(BasePredictionWriter):
     """Writes the :class:`PredictionBatch` of every predict step as OpenLane JSON files.
 
-    output_dir: where the layout above goes; write_ground_truth: also the labeled frames'
-    ground truth and the test list. Under DDP every rank writes its own frames and rank 0 the
-    test list of all of them.
+    output_dir: where the layout above goes; ground_truth: the clip store predicted, whose
+    labeled frames' ground truth and test list are written too (None: predictions alone).
+    Under DDP every rank writes its own frames and rank 0 the test list of all of them.
     """
 
-    def __init__(self, output_dir: str | os.PathLike[str], write_ground_truth: bool) -> None:
+    def __init__(self, output_dir: str | os.PathLike[str], ground_truth: str | os.PathLike[str] | None) -> None:
         super().__init__(write_interval="batch")
         self.output_dir = Path(output_dir)
-        self.write_ground_truth = write_ground_truth
+        self.store = None if ground_truth is None else ClipStore(ground_truth)
         self._labeled: list[str] = []  # this rank's test-list lines
 
     def on_predict_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
@@ -62,14 +69,15 @@ class OpenLaneWriter(BasePredictionWriter):
             lanes = predictions.lanes(i, visible_only=False)  # write_prediction keeps the visible points
             scores = [lane.score for lane in lanes]
             write_prediction(self.output_dir / PREDICTIONS, file_path, lanes, predictions.threshold, scores)
-            if self.write_ground_truth and prediction.labeled[i]:
-                lanes = prediction.ground_truth.lanes(i, visible_only=True)
-                K, T_lane_cam = (matrix[i].double().cpu().numpy() for matrix in (prediction.K, prediction.T_lane_cam))
-                write_ground_truth(self.output_dir / GROUND_TRUTH, file_path, lanes, K, T_lane_cam)
+            if self.store is not None and prediction.labeled[i]:
+                index = int(prediction.frame_indices[i])
+                (frame,) = self.store.read_frames(prediction.clip_ids[i], index, index + 1)
+                lanes = source_order(frame.lanes, frame.tags)
+                write_ground_truth(self.output_dir / GROUND_TRUTH, file_path, lanes, frame.K, frame.T_lane_cam)
                 self._labeled.append(file_path)
 
     def on_predict_epoch_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
-        if not self.write_ground_truth:
+        if self.store is None:
             return
         lines = self._labeled
         if dist.is_available() and dist.is_initialized():

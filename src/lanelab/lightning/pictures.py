@@ -1,5 +1,6 @@
-"""Pictures of predictions for the training logs: the camera image with the predicted lanes,
-beside top views of the ground truth and of the predictions (lanelab.viz draws all three).
+"""Pictures of predictions for the training logs: for each drawn frame, ground truth and
+prediction over the camera image the model saw and from above, under the frame's name and the
+training step, with a legend (:func:`lanelab.viz.panels.comparison_row`).
 
 They go to the logger where it takes images (W&B's ``log_image``), else into PNG files under
 the trainer's log directory (CSV logger, no logger).
@@ -17,7 +18,7 @@ from torch import Tensor
 
 from lanelab.atomic_file import atomic_output
 from lanelab.lanes import Lane
-from lanelab.viz import draw_lanes_on_image, draw_top_view
+from lanelab.viz.panels import categories_of, comparison_row, stack_rows
 
 
 def prediction_picture(
@@ -29,23 +30,21 @@ def prediction_picture(
     x_range: tuple[float, float],
     y_range: tuple[float, float],
     height: int,
+    title: str,
 ) -> np.ndarray:
-    """One frame's picture (height, W, 3) RGB uint8.
+    """One frame's picture (H, W, 3) RGB uint8: its row of panels (height pixels each) under
+    title, over a legend.
 
     image (3, H, W) as the model saw it (normalised: shown stretched to its own min..max,
     enlarged or shrunk to height pixels); K (3, 3) of that image; T_lane_cam (4, 4); lanes in
-    the lane frame; x_range, y_range: the lane-frame region of the top views (metres).
+    the lane frame; x_range, y_range: the lane-frame region of the top view (metres).
     """
     rgb = image.detach().float().cpu().permute(1, 2, 0).numpy()
     rgb = (255 * (rgb - rgb.min()) / max(float(rgb.max() - rgb.min()), 1e-6)).astype(np.uint8)
-    scale = height / rgb.shape[0]
-    bgr = cv2.resize(rgb[..., ::-1], (round(rgb.shape[1] * scale), height), interpolation=cv2.INTER_LINEAR)
-    K_scaled = K.detach().double().cpu().numpy() * np.array([[scale], [scale], [1.0]])
-    camera = draw_lanes_on_image(bgr, predictions, K_scaled, T_lane_cam.detach().double().cpu().numpy())
-    size = (height, height // 2)
-    top_gt = draw_top_view(ground_truth, size, x_range, y_range, title="ground truth")
-    top_pred = draw_top_view(predictions, size, x_range, y_range, title="prediction")
-    return np.concatenate([camera, top_gt, top_pred], axis=1)[..., ::-1].copy()
+    K, T_lane_cam = (matrix.detach().double().cpu().numpy() for matrix in (K, T_lane_cam))
+    row = comparison_row(np.ascontiguousarray(rgb[..., ::-1]), K, T_lane_cam, ground_truth, predictions, height,
+                         x_range, y_range, title)  # fmt: skip
+    return stack_rows([row], categories_of(ground_truth, predictions), height)[..., ::-1].copy()
 
 
 def log_pictures(trainer: pl.Trainer, key: str, pictures: Sequence[np.ndarray]) -> None:

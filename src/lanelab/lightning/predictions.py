@@ -114,14 +114,14 @@ class PredictionBatch:
     """What ``predict_step`` returns for the B' real (not padding) frames of a batch (Lightning
     moves it to the CPU to collect it).
 
-    file_paths: OpenLane ``file_path`` of each frame; labeled (B',) bool; K (B', 3, 3) and
-    T_lane_cam (B', 4, 4) of the model input; predictions and ground_truth: every lane slot,
-    see :class:`DenseLanes` (ground truth empty where not labeled).
+    file_paths: OpenLane ``file_path`` of each frame (:func:`lanelab.openlane.file_paths.store_file_path`:
+    an OpenLane store's own); clip_ids and frame_indices (B',): where each frame lies in its
+    store, so that its ground truth can be read as stored; labeled (B',) bool; predictions: every
+    lane slot, see :class:`DenseLanes`.
     """
 
     file_paths: list[str]
+    clip_ids: list[str]
+    frame_indices: Tensor
     labeled: Tensor
-    K: Tensor
-    T_lane_cam: Tensor
     predictions: DenseLanes
-    ground_truth: DenseLanes

@@ -33,6 +33,10 @@ TABLE7_GROUPS = {
     "weather": "Daytime / Weather",
     "curvature": "Curvature",
 }
+# Tag key -> column group of the tags a store made from OpenLane gives its frames: the test
+# cases of their scenario lists (``curve: Curve``, SparseLaneSTP's Table 4), then scene.json's
+# (Table 7).
+OPENLANE_TAG_GROUPS = {**{case: "OpenLane" for case in OPENLANE_SCENARIOS}, **TABLE7_GROUPS}
 
 
 @dataclass(frozen=True)

@@ -7,12 +7,15 @@ Every OpenLane JSON file names its frame by ``file_path``, the frame's image pat
 - A clip-store frame is named "<clip_id>/<timestamp_ns>.jpg" (:func:`frame_path`).
 - A frame of a store made from OpenLane (``lanelab-openlane``) keeps the ground truth's own
   ``file_path`` in its :data:`FILE_PATH_TAG` tag (:func:`file_path_of`), so that predictions
-  written under it pair with the official files.
+  written under it pair with the official files (and ``images=`` finds its image).
+
+:func:`store_file_path` picks between the two for any store's frame.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
 
@@ -36,7 +39,19 @@ def file_path_of(frame: FrameRecord) -> str:
                        "not from a store made by lanelab-openlane") from None
 
 
+def store_file_path(clip_id: str, timestamp_ns: int, tags: Mapping[str, str]) -> str:
+    """The ``file_path`` under which a clip-store frame's OpenLane files are written: its
+    :data:`FILE_PATH_TAG` tag (a frame of an OpenLane store), else :func:`frame_path`."""
+    return tags.get(FILE_PATH_TAG) or frame_path(clip_id, timestamp_ns)
+
+
+def frame_id(file_path: str) -> str:
+    """The name of the frame with this ``file_path`` in a test list as read
+    (:func:`lanelab.openlane.lists.read_test_list`) and in scores: its JSON path, relative."""
+    return PurePosixPath(file_path).with_suffix(".json").as_posix()
+
+
 def json_path(directory: str | os.PathLike[str], file_path: str) -> Path:
     """Where the JSON file (ground truth or prediction) of the frame with this ``file_path``
     lies under directory."""
-    return Path(directory) / PurePosixPath(file_path).with_suffix(".json")
+    return Path(directory) / frame_id(file_path)

@@ -1,4 +1,4 @@
-"""Line charts drawn with OpenCV (matplotlib is not a dependency): learning curves and the like.
+"""Line charts drawn with OpenCV, without matplotlib's import cost: learning curves and the like.
 
 ``line_chart`` draws one panel (several series against a shared x axis, an optional dashed
 reference level); ``chart_grid`` tiles panels into one picture.

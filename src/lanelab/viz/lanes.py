@@ -1,11 +1,18 @@
 """Draw 3D lanes (lane frame) over a camera image and in a bird's-eye top view.
 
-Used by the synthetic-log preview, and by evaluation and training pictures, so that
-every picture of lanes in lanelab looks the same.
+Used by the synthetic-log preview, and by evaluation and training pictures
+(:mod:`lanelab.viz.panels`), so that every picture of lanes in lanelab looks the same. Colours
+are BGR (OpenCV's order), pictures (H, W, 3) uint8.
+
+A lane is drawn in its category's colour (:data:`CATEGORY_COLORS`) or, to compare two sets of
+lanes in one panel, in one colour per set (``color``: :data:`GT_COLOR` for ground truth,
+:data:`PREDICTION_COLOR` for predictions); the parts its labels mark hidden (visibility below
+0.5) as thin lines in :data:`HIDDEN_COLOR`.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Sequence
 
 import cv2
@@ -15,8 +22,10 @@ import torch
 from lanelab.geometry.camera import project_lane_points
 from lanelab.lanes import Lane
 
+Color = tuple[int, int, int]
+
 # BGR per OpenLane category id: white lines white-ish, yellow lines yellow, curbs orange.
-CATEGORY_COLORS: dict[int, tuple[int, int, int]] = {
+CATEGORY_COLORS: dict[int, Color] = {
     0: (200, 200, 200),
     1: (255, 255, 255),
     2: (235, 235, 255),
@@ -33,10 +42,19 @@ CATEGORY_COLORS: dict[int, tuple[int, int, int]] = {
     20: (0, 110, 255),
     21: (255, 110, 0),
 }
-HIDDEN_COLOR = (90, 90, 255)
+HIDDEN_COLOR: Color = (90, 90, 255)
+# Ground truth against prediction: green against magenta, opposite hues that differ for
+# red-green colour blindness too, and from every category colour.
+GT_COLOR: Color = (60, 220, 60)
+PREDICTION_COLOR: Color = (230, 40, 230)
+VISIBLE = 0.5  # label visibility from which a point is drawn as visible
+
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+_GRID, _TICK_TEXT = (55, 55, 55), (150, 150, 150)
 
 
-def _color(category: int) -> tuple[int, int, int]:
+def category_color(category: int) -> Color:
+    """The colour of a category id (unknown ids get category 0's)."""
     return CATEGORY_COLORS.get(int(category), CATEGORY_COLORS[0])
 
 
@@ -53,6 +71,22 @@ def _polyline_runs(pixels: np.ndarray, keep: np.ndarray) -> list[np.ndarray]:
     return runs
 
 
+def _draw_lane(
+    canvas: np.ndarray, lane: Lane, pixels: np.ndarray, drawable: np.ndarray, thickness: int, show_hidden: bool,
+    color: Color | None,
+) -> None:  # fmt: skip
+    """One lane's pixels (P, 2) where drawable (P,): visible parts thick, hidden ones thin."""
+    visible = np.asarray(lane.visibility) >= VISIBLE
+    layers = [(visible, color or category_color(lane.category), thickness)]
+    if show_hidden:
+        layers.insert(0, (~visible, HIDDEN_COLOR, 1))
+    for keep, layer_color, width in layers:
+        # a hidden point next to a visible one joins both runs, so lines do not break
+        keep = drawable & (keep | np.convolve(keep, [1, 1, 1], "same").astype(bool))
+        for run in _polyline_runs(pixels, keep):
+            cv2.polylines(canvas, [run], False, layer_color, width, cv2.LINE_AA, shift=4)
+
+
 def draw_lanes_on_image(
     image: np.ndarray,
     lanes: Sequence[Lane],
@@ -60,11 +94,12 @@ def draw_lanes_on_image(
     T_lane_cam: np.ndarray,
     thickness: int = 2,
     show_hidden: bool = True,
+    color: Color | None = None,
 ) -> np.ndarray:
     """Return a copy of a BGR image (H, W, 3) with the lanes projected on it.
 
-    Visible points are drawn in the category colour; hidden ones (visibility < 0.5)
-    as thin red lines when ``show_hidden``. K (3, 3), T_lane_cam (4, 4).
+    Visible points in the category colour (or ``color``); hidden ones (visibility < 0.5) as
+    thin :data:`HIDDEN_COLOR` lines when ``show_hidden``. K (3, 3), T_lane_cam (4, 4).
     """
     canvas = image.copy()
     if not lanes:
@@ -77,18 +112,76 @@ def draw_lanes_on_image(
     start = 0
     for lane in lanes:
         stop = start + len(lane.points)
-        pixels, front = uv[start:stop], in_front[start:stop]
-        visible = np.asarray(lane.visibility) >= 0.5
-        layers = [(visible, _color(lane.category), thickness)]
-        if show_hidden:
-            layers.insert(0, (~visible, HIDDEN_COLOR, 1))
-        for keep, color, width in layers:
-            # a hidden point next to a visible one joins both runs, so lines do not break
-            keep = front & (keep | np.convolve(keep, [1, 1, 1], "same").astype(bool))
-            for run in _polyline_runs(pixels, keep):
-                cv2.polylines(canvas, [run], False, color, width, cv2.LINE_AA, shift=4)
+        _draw_lane(canvas, lane, uv[start:stop], in_front[start:stop], thickness, show_hidden, color)
         start = stop
     return canvas
+
+
+@dataclass(frozen=True)
+class TopView:
+    """A bird's-eye view of the lane frame's region x_range by y_range (metres): x to the
+    right, y up the picture, in a picture of size (H, W) whose bottom strip of ``axis_height``
+    pixels holds the x axis in metres (0: none).
+
+    :meth:`canvas` gives the empty view (grid every 10 m across and 50 m along, labelled in
+    metres; the ego at the bottom centre); :meth:`draw` adds lanes to one, so that several
+    sets of lanes can share a view.
+    """
+
+    size: tuple[int, int]
+    x_range: tuple[float, float]
+    y_range: tuple[float, float]
+    axis_height: int = 14
+
+    def pixels(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Lane-frame x, y (metres, same shape) -> (..., 2) pixel u, v of the plot area."""
+        height, width = self.size[0] - self.axis_height, self.size[1]
+        u = (x - self.x_range[0]) / (self.x_range[1] - self.x_range[0]) * (width - 1)
+        v = (1.0 - (y - self.y_range[0]) / (self.y_range[1] - self.y_range[0])) * (height - 1)
+        return np.stack([u, v], -1)
+
+    def canvas(self, title_height: int = 0) -> np.ndarray:
+        """The empty view; no y label in its top title_height pixels (where a title goes)."""
+        height, width = self.size
+        plot_height = height - self.axis_height
+        canvas = np.full((height, width, 3), 30, np.uint8)
+        canvas[plot_height:] = 15
+        scale = min(0.35, max(0.25, self.axis_height / 40))
+        # The grid every 10 m (5 m on narrow ranges); labelled from x = 0 outwards, each label
+        # where it overlaps none placed before.
+        x_step = 10.0 if self.x_range[1] - self.x_range[0] >= 30 else 5.0
+        ticks = np.arange(np.ceil(self.x_range[0] / x_step) * x_step, self.x_range[1] + 1e-6, x_step)
+        placed: list[tuple[int, int]] = []
+        for x in sorted(ticks, key=abs):
+            u = int(round(self.pixels(np.array(x), np.array(self.y_range[0]))[0]))
+            cv2.line(canvas, (u, 0), (u, plot_height - 1), _GRID, 1)
+            label = f"{x:.0f}m"
+            (w, h), _ = cv2.getTextSize(label, _FONT, scale, 1)
+            left = min(max(u - w // 2, 0), width - w)
+            if self.axis_height and all(left + w + 3 <= start or left >= stop + 3 for start, stop in placed):
+                cv2.putText(canvas, label, (left, plot_height + (self.axis_height + h) // 2), _FONT, scale,
+                            _TICK_TEXT, 1, cv2.LINE_AA)  # fmt: skip
+                placed.append((left, left + w))
+        for y in np.arange(np.ceil(self.y_range[0] / 50) * 50, self.y_range[1] + 1e-6, 50.0):
+            v = int(round(self.pixels(np.array(self.x_range[0]), np.array(y))[1]))
+            cv2.line(canvas, (0, v), (width - 1, v), _GRID, 1)
+            if max(v - 2, 10) - 8 >= title_height:  # the label's top row
+                cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, 10)), _FONT, 0.3, _TICK_TEXT, 1, cv2.LINE_AA)
+        ego = self.pixels(np.array(0.0), np.array(max(self.y_range[0], 0.0)))
+        cv2.circle(canvas, (int(ego[0]), int(min(ego[1], plot_height - 4))), 3, (0, 255, 0), -1)
+        return canvas
+
+    def draw(
+        self, canvas: np.ndarray, lanes: Sequence[Lane], thickness: int = 2, show_hidden: bool = True,
+        color: Color | None = None,
+    ) -> np.ndarray:  # fmt: skip
+        """canvas (a :meth:`canvas`) with the lanes drawn on it, in place; returned."""
+        plot = canvas[: self.size[0] - self.axis_height]  # a view: lanes stay out of the axis strip
+        for lane in lanes:
+            points = np.asarray(lane.points, np.float64)
+            pixels = self.pixels(points[:, 0], points[:, 1])
+            _draw_lane(plot, lane, pixels, np.ones(len(points), bool), thickness, show_hidden, color)
+        return canvas
 
 
 def draw_top_view(
@@ -98,35 +191,10 @@ def draw_top_view(
     y_range: tuple[float, float] = (0.0, 200.0),
     title: str | None = None,
 ) -> np.ndarray:
-    """Bird's-eye view (H, W, 3) of lanes in the lane frame: x to the right, y up the picture.
-
-    Visible parts in the category colour, hidden parts thin red; a grid every 10 m
-    across and 50 m along; the ego at the bottom centre.
-    """
-    height, width = size
-    canvas = np.full((height, width, 3), 30, np.uint8)
-
-    def to_pixels(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        u = (x - x_range[0]) / (x_range[1] - x_range[0]) * (width - 1)
-        v = (1.0 - (y - y_range[0]) / (y_range[1] - y_range[0])) * (height - 1)
-        return np.stack([u, v], -1)
-
-    for x in np.arange(np.ceil(x_range[0] / 10) * 10, x_range[1] + 1e-6, 10.0):
-        u = int(round(to_pixels(np.array(x), np.array(y_range[0]))[0]))
-        cv2.line(canvas, (u, 0), (u, height - 1), (55, 55, 55), 1)
-    for y in np.arange(np.ceil(y_range[0] / 50) * 50, y_range[1] + 1e-6, 50.0):
-        v = int(round(to_pixels(np.array(x_range[0]), np.array(y))[1]))
-        cv2.line(canvas, (0, v), (width - 1, v), (55, 55, 55), 1)
-        cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, 10)), cv2.FONT_HERSHEY_SIMPLEX, 0.3, (120, 120, 120), 1)
-    for lane in lanes:
-        points = np.asarray(lane.points, np.float64)
-        pixels = to_pixels(points[:, 0], points[:, 1])
-        visible = np.asarray(lane.visibility) >= 0.5
-        for keep, color, w in ((np.ones_like(visible), HIDDEN_COLOR, 1), (visible, _color(lane.category), 2)):
-            for run in _polyline_runs(pixels, keep):
-                cv2.polylines(canvas, [run], False, color, w, cv2.LINE_AA, shift=4)
-    ego = to_pixels(np.array(0.0), np.array(max(y_range[0], 0.0)))
-    cv2.circle(canvas, (int(ego[0]), int(min(ego[1], height - 4))), 3, (0, 255, 0), -1)
+    """Bird's-eye view (H, W, 3) of lanes in the lane frame (:class:`TopView`), in their
+    category colours, hidden parts thin; an optional title at the top left."""
+    view = TopView(size, x_range, y_range)
+    canvas = view.draw(view.canvas(title_height=18 if title else 0), lanes)
     if title:
-        cv2.putText(canvas, title, (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+        cv2.putText(canvas, title, (4, 14), _FONT, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
     return canvas
