@@ -52,8 +52,18 @@ from lanelab.data.mirror import mirror_categories, mirror_intrinsics, mirror_tra
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
 from lanelab.finite import NonFiniteError
-from lanelab.store import ClipStore, FrameRecord
+from lanelab.store import SPLITS, ClipStore, FrameRecord
 from lanelab.store.image_codec import decode_image
+
+
+class DataError(ValueError):
+    """A store cannot give what was asked of it: a split without clips, or windows its clips cannot
+    give; the message names the store and the split and says what to change."""
+
+
+def split_counts(store: ClipStore) -> str:
+    """How many clips each split of the store has: "train 0, val 2, test 0"."""
+    return ", ".join(f"{split} {sum(clip.split == split for clip in store.clips)}" for split in SPLITS)
 
 
 def check_finite(record: FrameRecord, clip_id: str, store: Path) -> None:
@@ -95,9 +105,15 @@ class ClipDataset(Dataset):
         augment: PhotometricAugment | None = None,
     ) -> None:
         self.store = ClipStore(store_dir)
+        if split not in SPLITS:
+            raise DataError(f"{self.store.root}: no split {split!r} (a store's splits: {', '.join(SPLITS)})")
         clip_ids = [clip.clip_id for clip in self.store.clips_in(split)]
         if not clip_ids:
-            raise ValueError(f"{self.store.root}: the store has no clips in split {split!r}")
+            raise DataError(f"{self.store.root}: split {split!r} has no clips (clips per split: "
+                            f"{split_counts(self.store)}); ingest with split.by=clip so that few logs still fill "
+                            "every split, or read another split")
+        if num_frames < 1:
+            raise DataError(f"num_frames={num_frames}: a sample needs at least one frame")
         self.index = FrameIndex.from_store(self.store, clip_ids)
         self.offsets = consecutive_offsets(num_frames)
         self.resize = resize

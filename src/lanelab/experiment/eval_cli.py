@@ -26,7 +26,7 @@ import hydra
 from omegaconf import DictConfig
 from omegaconf.errors import MissingMandatoryValue
 
-from lanelab.config_checks import ConfigError, register_schema, typed
+from lanelab.config_checks import BAD_OPTION_STATUS, ConfigError, register_schema, run_hydra_tool, typed
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.finite import NonFiniteError
@@ -100,17 +100,17 @@ def _run(cfg: DictConfig) -> None:
         run(validate(typed(cfg, EvalConfig)))
     except MissingMandatoryValue as err:
         print(f"lanelab-eval: missing option {err.full_key}=...", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(BAD_OPTION_STATUS)
     except ConfigError as err:  # a bad option, or a checkpoint that lanelab-train did not write
         print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(BAD_OPTION_STATUS)
     except (LaneFileError, NonFiniteError) as err:
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(1)
 
 
 def main() -> None:
-    _run()
+    run_hydra_tool("lanelab-eval", _run)
 
 
 if __name__ == "__main__":
