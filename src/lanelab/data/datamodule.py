@@ -25,10 +25,11 @@ from torch.utils.data import DataLoader, Sampler
 
 from lanelab.data.augment import PhotometricAugment
 from lanelab.data.collate import collate_samples
-from lanelab.data.dataset import ClipDataset, DataError
+from lanelab.data.dataset import ClipDataset
 from lanelab.data.frame_index import SampleKey
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
+from lanelab.store import DataError
 
 SamplerFactory = Callable[..., Sampler[SampleKey]]
 
@@ -93,7 +94,7 @@ class ClipDataModule(pl.LightningDataModule):
     def check(self, stages: Sequence[str]) -> None:
         """Read what the stages ("train", "val", "test", "predict") need of the store and draw
         their samplers once, before a model is built: :class:`~lanelab.store.ManifestError` for a
-        missing or unreadable store, :class:`~lanelab.data.dataset.DataError` naming the stage's
+        missing or unreadable store, :class:`~lanelab.store.DataError` naming the stage's
         split for one without clips or windows its sampler cannot draw. A stage without a split
         (``splits.<stage>: null``) needs nothing."""
         for stage in stages:

@@ -52,18 +52,8 @@ from lanelab.data.mirror import mirror_categories, mirror_intrinsics, mirror_tra
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
 from lanelab.finite import NonFiniteError
-from lanelab.store import SPLITS, ClipStore, FrameRecord
+from lanelab.store import SPLITS, ClipStore, DataError, FrameRecord
 from lanelab.store.image_codec import decode_image
-
-
-class DataError(ValueError):
-    """A store cannot give what was asked of it: a split without clips, or windows its clips cannot
-    give; the message names the store and the split and says what to change."""
-
-
-def split_counts(store: ClipStore) -> str:
-    """How many clips each split of the store has: "train 0, val 2, test 0"."""
-    return ", ".join(f"{split} {sum(clip.split == split for clip in store.clips)}" for split in SPLITS)
 
 
 def check_finite(record: FrameRecord, clip_id: str, store: Path) -> None:
@@ -110,7 +100,7 @@ class ClipDataset(Dataset):
         clip_ids = [clip.clip_id for clip in self.store.clips_in(split)]
         if not clip_ids:
             raise DataError(f"{self.store.root}: split {split!r} has no clips (clips per split: "
-                            f"{split_counts(self.store)}); ingest with split.by=clip so that few logs still fill "
+                            f"{self.store.split_counts()}); ingest with split.by=clip so that few logs still fill "
                             "every split, or read another split")
         if num_frames < 1:
             raise DataError(f"num_frames={num_frames}: a sample needs at least one frame")

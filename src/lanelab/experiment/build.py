@@ -41,7 +41,7 @@ def build_run(cfg: DictConfig) -> Run:
 
     The store is checked first, for the stages the run will go through (:func:`stages`),
     before the model and the Trainer are built: :class:`~lanelab.store.ManifestError` (no
-    store or an unreadable one), :class:`~lanelab.data.DataError` (a split without clips, or
+    store or an unreadable one), :class:`~lanelab.store.DataError` (a split without clips, or
     windows its clips cannot give)."""
     pl.seed_everything(cfg.seed, workers=True, verbose=False)
     if cfg.cpu_threads is not None:

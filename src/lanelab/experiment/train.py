@@ -39,13 +39,12 @@ from omegaconf import DictConfig
 
 from lanelab.atomic_file import atomic_output
 from lanelab.config_checks import BAD_OPTION_STATUS, bad_options_exit, register_schema, run_hydra_tool
-from lanelab.data import DataError
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
 from lanelab.experiment.build import build_run
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
 from lanelab.finite import NonFiniteError
 from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
-from lanelab.store import ClipFileError, ManifestError
+from lanelab.store import ClipFileError, DataError, ManifestError
 
 register_schema(SCHEMA_NAME, TrainConfig)
 log = logging.getLogger("lanelab.train")
