@@ -18,7 +18,7 @@ import hydra
 from omegaconf import DictConfig
 
 from data_ingest.ingest.config import SCHEMA_NAME, IngestConfig, validate
-from lanelab.config_checks import BAD_OPTION_STATUS, ConfigError, register_schema, run_hydra_tool, typed
+from lanelab.config_checks import BAD_OPTION_STATUS, ConfigError, bad_options_exit, register_schema, run_hydra_tool, typed
 
 register_schema(SCHEMA_NAME, IngestConfig)
 
@@ -27,12 +27,13 @@ register_schema(SCHEMA_NAME, IngestConfig)
 def _run(cfg: DictConfig) -> None:
     from data_ingest.ingest.ingest import FAILED, ingest, verify  # heavy imports only once the options are good
 
-    try:
+    with bad_options_exit("lanelab-ingest"):
         options = validate(typed(cfg, IngestConfig))
+    try:
         if options.verify:
             sys.exit(1 if verify(options.output) else 0)
         results = ingest(options)
-    except ConfigError as err:
+    except ConfigError as err:  # no log there, or an output that cannot take them
         print(f"lanelab-ingest: {err}", file=sys.stderr)
         sys.exit(BAD_OPTION_STATUS)
     except KeyboardInterrupt as err:  # IngestInterrupted says what was recorded
