@@ -6,7 +6,9 @@
 - a longer run than ``clips.max_length_s`` is cut into the fewest equal parts that fit;
 - the split (train / val / test, by ``split.*`` ratios) is drawn from a hash of the log's
   name (``split.by=log``) or of the clip's place in it (``split.by=clip``), never per
-  frame: re-ingesting gives the same splits.
+  frame: re-ingesting gives the same splits. Few clips can all draw val or test; then one of
+  them (with ``split.by=log``, its log's clips) goes to train (:func:`clips_for_train`),
+  chosen from the clips alone, so that the same logs give the same store.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import re
 import numpy as np
 
 from data_ingest.ingest.config import SplitConfig
+from lanelab.store import ClipEntry
 
 KEEP_AFTER = 0.75  # of the target period, for target_fps
 
@@ -60,6 +63,18 @@ def draw_split(key: str, split: SplitConfig) -> str:
     digest = hashlib.sha256(f"{split.seed}/{key}".encode()).digest()
     u = int.from_bytes(digest[:8], "big") / 2**64
     return "train" if u < split.train else "val" if u < split.train + split.val else "test"
+
+
+def clips_for_train(clips: list[ClipEntry], split: SplitConfig) -> list[ClipEntry]:
+    """The clips to move into train when a store that should have a train split has none, and
+    two clips or more (one stays for evaluation): the first by id of the fuller of test and val
+    (test on a tie: validation is what training needs) and, with ``split.by=log``, the other
+    clips of its log (a log stays in one split). None when nothing needs to move."""
+    if split.train == 0 or len(clips) < 2 or any(clip.split == "train" for clip in clips):
+        return []
+    by_split = {name: sorted((c for c in clips if c.split == name), key=lambda c: c.clip_id) for name in ("test", "val")}
+    first = by_split[max(("test", "val"), key=lambda name: len(by_split[name]))][0]
+    return [clip for clip in clips if clip.source == first.source] if split.by == "log" else [first]
 
 
 def split_key(name: str, index: int, split: SplitConfig) -> str:

@@ -35,7 +35,7 @@ import numpy as np
 from tqdm import tqdm
 
 from data_ingest.ingest.assemble import PlannedFrame, assemble
-from data_ingest.ingest.clips import cut, draw_split, log_name, split_key, subsample
+from data_ingest.ingest.clips import clips_for_train, cut, draw_split, log_name, split_key, subsample
 from data_ingest.ingest.config import IngestConfig, store_options
 from data_ingest.ingest.errors import IngestInterrupted, LogError
 from data_ingest.ingest.mcap_reader import ReadReport
@@ -45,6 +45,7 @@ from data_ingest.ingest.summary import print_summary
 from data_ingest.ingest.workers import in_workers
 from lanelab.config_checks import ConfigError
 from lanelab.store import (
+    UNREADABLE_SUFFIX,
     ClipEntry,
     ManifestError,
     SourceEntry,
@@ -189,9 +190,13 @@ def ingest(cfg: IngestConfig) -> list[LogResult]:
     try:
         writer = StoreWriter(cfg.output, store_options(cfg), source_name, overwrite=cfg.overwrite)
     except ManifestError as err:
-        raise ConfigError(f"output={cfg.output!r} holds a manifest that cannot be read: {err}") from None
+        raise ConfigError(f"output={cfg.output!r} holds a manifest that cannot be read: {err}; overwrite=true "
+                          f"re-ingests every log into a new one (the old one kept as manifest.json"
+                          f"{UNREADABLE_SUFFIX})") from None
     except (StoreRefused, StoreBusy) as err:
         raise ConfigError(str(err)) from None
+    if writer.set_aside is not None:
+        print(f"lanelab-ingest: the unreadable manifest is kept as {writer.set_aside}; every log is ingested anew")
     with writer:
         return _ingest_logs(logs, cfg, writer)
 
@@ -226,7 +231,10 @@ def _ingest_logs(logs: list[Path], cfg: IngestConfig, writer: StoreWriter) -> li
             raise IngestInterrupted(f"interrupted: {recorded} log(s) ingested into {cfg.output} by this run are "
                                     "recorded; run the same command again to resume with the rest") from None
     in_order = [results[str(path)] for path in logs]
-    print_summary(in_order, writer.manifest, time.perf_counter() - start)
+    moved = clips_for_train(writer.manifest.clips, cfg.split)
+    if moved:
+        writer.assign_split([clip.clip_id for clip in moved], "train")
+    print_summary(in_order, writer.manifest, time.perf_counter() - start, cfg.split, moved)
     return in_order
 
 

@@ -49,6 +49,8 @@ class ReadReport:
     bad_chunks: list[str] = field(default_factory=list)  # one line per skipped chunk
     lost_in_bad_chunks: Counter = field(default_factory=Counter)  # messages per topic, from the chunks' indexes
     broken_at: Optional[str] = None  # where and why reading stopped before the footer
+    break_byte: Optional[int] = None  # where it stopped
+    break_reason: Optional[str] = None  # why
     data_complete: bool = False  # the data section's end was read (a break after it loses no message)
 
     def problems(self) -> list[str]:
@@ -105,14 +107,14 @@ def read_messages(
                     reason = ("not an MCAP file (no MCAP magic at its start)" if isinstance(err, InvalidMagic)
                               else f"no complete MCAP record ({type(err).__name__})")
                     raise LogError(f"{path}: {reason}") from None
-                report.broken_at = _break(record_start, report.size, messages, f"{type(err).__name__} {err}".strip())
+                _break(report, record_start, messages, f"{type(err).__name__} {err}".strip())
                 return
             position = handle.tell()
             if progress is not None:
                 progress(position - record_start)
             if isinstance(record, Chunk):
                 if position >= report.size:  # a valid file never ends with a chunk: this one is cut short
-                    report.broken_at = _break(record_start, report.size, messages, "the chunk there is cut")
+                    _break(report, record_start, messages, "the chunk there is cut")
                     return
                 inner = _open_chunk(record, record_start, position, report)
                 last_chunk_bad = inner is None
@@ -150,9 +152,11 @@ def _summary_records(handle: BinaryIO) -> tuple[dict[int, Schema], dict[int, Cha
     return (dict(summary.schemas), dict(summary.channels)) if summary else ({}, {})
 
 
-def _break(at: int, size: int, messages: int, why: str) -> str:
-    return (f"truncated or unreadable from byte {at} of {size} ({why}): recovered the {messages} messages "
-            f"before it; the last {size - at} bytes are lost")
+def _break(report: ReadReport, at: int, messages: int, why: str) -> None:
+    """Record where and why reading stopped."""
+    report.break_byte, report.break_reason = at, why
+    report.broken_at = (f"truncated or unreadable from byte {at} of {report.size} ({why}): recovered the {messages} "
+                        f"messages before it; the last {report.size - at} bytes are lost")
 
 
 def _open_chunk(chunk: Chunk, start: int, end: int, report: ReadReport) -> list | None:

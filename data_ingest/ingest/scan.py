@@ -117,6 +117,9 @@ def _check_required(path: Path, cfg: IngestConfig, report: ReadReport) -> None:
     if not missing:
         return
     if not report.topics:
+        if report.break_byte is not None:  # e.g. cut inside its only chunk, which held the channels too
+            raise LogError(f"{path}: truncated or unreadable from byte {report.break_byte} of {report.size}, "
+                           f"before any complete message ({report.break_reason}): nothing to ingest")
         raise LogError(f"{path}: the log has no channels and no messages")
     have = ", ".join(f"{topic} ({type_name(report.schemas.get(topic)) or 'no schema'}, {count} messages)"
                      for topic, count in sorted(report.topics.items()))

@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from lanelab.store import SPLITS, Manifest
+from data_ingest.ingest.config import SplitConfig
+from lanelab.store import SPLITS, ClipEntry, Manifest
 
 if TYPE_CHECKING:
     from data_ingest.ingest.ingest import LogResult
 
 
-def print_summary(results: list[LogResult], manifest: Manifest, seconds: float) -> None:
+def print_summary(results: list[LogResult], manifest: Manifest, seconds: float, split: SplitConfig,
+                  moved: Sequence[ClipEntry] = ()) -> None:
+    """The table of logs, the totals, the store's clips per split, and a warning naming each split
+    that the ratios give a share but has no clip (``moved``: the clips put into train for lack of one)."""
     print(f"\n{'log':<32}{'status':>10}{'frames':>8}{'clips':>7}{'labeled':>9}{'dropped':>9}")
     for r in results:
         counts = f"{r.num_frames:>8}{len(r.clips):>7}{_percent(r.labeled, r.num_frames):>9}" \
@@ -36,6 +41,14 @@ def print_summary(results: list[LogResult], manifest: Manifest, seconds: float) 
     splits = Counter(clip.split for clip in manifest.clips)
     print(f"store: {len(manifest.clips)} clips, {sum(c.num_frames for c in manifest.clips)} frames from "
           f"{len(manifest.sources)} logs (" + ", ".join(f"{s} {splits[s]}" for s in SPLITS) + " clips)")
+    if moved:
+        print(f"note: no clip drew the train split; moved there from {moved[0].split}: "
+              + ", ".join(clip.clip_id for clip in moved))
+    empty = [name for name in SPLITS if getattr(split, name) > 0 and splits[name] == 0]
+    if empty and manifest.clips:
+        print(f"warning: no clip in split {', '.join(empty)}: lanelab-train needs train and val clips (and test for "
+              f"test=true). With few logs, split.by=clip draws each clip apart (clips.max_length_s cuts long logs "
+              f"into more clips)")
 
 
 def _percent(part: int, whole: int) -> str:

@@ -16,7 +16,7 @@ from omegaconf import DictConfig
 from omegaconf.errors import MissingMandatoryValue
 
 from data_ingest.openlane.config import SCHEMA_NAME, OpenLaneAdapterConfig, validate
-from lanelab.config_checks import ConfigError, register_schema, typed
+from lanelab.config_checks import BAD_OPTION_STATUS, ConfigError, register_schema, run_hydra_tool, typed
 from lanelab.json_files import LaneFileError
 from lanelab.store import ManifestError
 
@@ -47,10 +47,10 @@ def _run(cfg: DictConfig) -> None:
         ok = run(validate(typed(cfg, OpenLaneAdapterConfig)))
     except MissingMandatoryValue as err:
         print(f"lanelab-openlane: missing option {err.full_key}=...", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(BAD_OPTION_STATUS)
     except ConfigError as err:
         print(f"lanelab-openlane: bad option: {err}", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(BAD_OPTION_STATUS)
     except (LaneFileError, ManifestError) as err:
         print(f"lanelab-openlane: {err}", file=sys.stderr)
         sys.exit(1)
@@ -59,7 +59,7 @@ def _run(cfg: DictConfig) -> None:
 
 
 def main() -> None:
-    _run()
+    run_hydra_tool("lanelab-openlane", _run)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@
 
 Options are Hydra overrides of ``conf/synth.yaml``; ``--preview`` is short for
 ``preview=true``. Logs already present are kept (an interrupted run resumes) unless
-``overwrite=true``.
+``overwrite=true``. A bad option is named in one line before anything is written (exit status 2).
 """
 
 from __future__ import annotations
@@ -15,17 +15,15 @@ import hydra
 from omegaconf import DictConfig
 
 from data_ingest.synth.config import SCHEMA_NAME, SynthConfig, validate
-from lanelab.config_checks import ConfigError, register_schema, typed
+from lanelab.config_checks import bad_options_exit, register_schema, run_hydra_tool, typed
 
 register_schema(SCHEMA_NAME, SynthConfig)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="synth")
 def _run(cfg: DictConfig) -> None:
-    try:
+    with bad_options_exit("lanelab-synth"):
         synth_cfg = validate(typed(cfg, SynthConfig))
-    except ConfigError as err:
-        sys.exit(f"lanelab-synth: bad option: {err}")
     from data_ingest.synth.synthesize import synthesize  # heavy imports only once the options are good
 
     synthesize(synth_cfg)
@@ -33,7 +31,7 @@ def _run(cfg: DictConfig) -> None:
 
 def main() -> None:
     sys.argv = [("preview=true" if arg == "--preview" else arg) for arg in sys.argv]
-    _run()
+    run_hydra_tool("lanelab-synth", _run)
 
 
 if __name__ == "__main__":

@@ -9,19 +9,75 @@ work, naming the key, before anything is read or written.
 from __future__ import annotations
 
 import dataclasses
+import os
+import sys
 import typing
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable, Sequence, TypeVar
 
 from hydra import compose, initialize_config_module
 from hydra.core.config_store import ConfigStore
+from hydra.errors import HydraException, MissingConfigException, OverrideParseException
 from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
 
 Config = TypeVar("Config")
 
 
 class ConfigError(ValueError):
     """An option has a value that cannot work; the message names the key."""
+
+
+NO_SUCH_OPTION = "no such option (check its spelling in the tool's conf/*.yaml)"
+BAD_OPTION_STATUS = 2  # the exit status of every tool for an option it cannot use
+
+
+def run_hydra_tool(tool: str, hydra_main: Callable[[], Any]) -> None:
+    """Run a tool's ``@hydra.main`` function so that an option Hydra cannot compose (a misspelt
+    key, a wrong type, a group option that does not exist, an override it cannot parse) ends
+    like one lanelab refuses: one line naming it, exit status 2.
+
+    Hydra would print several lines and exit with 1; with HYDRA_FULL_ERROR it raises instead
+    (a user's own HYDRA_FULL_ERROR=0 keeps Hydra's way)."""
+    os.environ.setdefault("HYDRA_FULL_ERROR", "1")
+    with bad_options_exit(tool):
+        hydra_main()
+
+
+@contextmanager
+def bad_options_exit(tool: str) -> Iterator[None]:
+    """A ConfigError or a Hydra composition error in the block: ``<tool>: bad option: ...`` on
+    stderr and exit status 2."""
+    try:
+        yield
+    except ConfigError as err:
+        _exit_bad_option(tool, str(err))
+    except HydraException as err:
+        _exit_bad_option(tool, hydra_error_line(err))
+
+
+def _exit_bad_option(tool: str, message: str) -> None:
+    print(f"{tool}: bad option: {message}", file=sys.stderr)
+    sys.exit(BAD_OPTION_STATUS)
+
+
+def hydra_error_line(err: HydraException) -> str:
+    """One line for what Hydra could not compose, naming the key where Hydra's error does."""
+    cause = err.__cause__
+    if isinstance(cause, OmegaConfBaseException) and getattr(cause, "full_key", None):
+        if isinstance(cause, (ConfigKeyError, AttributeError)):
+            return f"{cause.full_key}: {NO_SUCH_OPTION}"
+        return f"{cause.full_key}: {str(cause).splitlines()[0]}"
+    lines = str(err).split("Config search path:")[0].splitlines()
+    text = lines[0].strip() if lines else type(err).__name__
+    if isinstance(err, OverrideParseException):
+        return f"cannot parse an override: {text}"
+    choices = [line.strip() for line in lines[1:] if line.startswith("\t")]
+    if isinstance(err, MissingConfigException) and choices:
+        return f"{text} (choices: {', '.join(choices)})"
+    return " ".join(line.strip() for line in lines if line.strip())
 
 
 def register_schema(name: str, schema: type) -> None:
@@ -53,7 +109,7 @@ def check_known_keys(cfg: DictConfig, schema: type) -> None:
     dataclasses of its fields, recursively) does not declare; fields typed Any are not looked into."""
     unknown = _unknown_keys(OmegaConf.to_container(cfg, resolve=False, throw_on_missing=False), schema, "")
     if unknown:
-        raise ConfigError(f"{unknown[0]}: no such option (check its spelling in the tool's conf/*.yaml)")
+        raise ConfigError(f"{unknown[0]}: {NO_SUCH_OPTION}")
 
 
 def _unknown_keys(values: Any, schema: type, prefix: str) -> list[str]:

@@ -1,6 +1,7 @@
 """``lanelab-demo``: the main job end to end on the embedded default, synthetic drives.
 
     lanelab-demo [key=value ...]        # Hydra overrides of experiment=demo, e.g. demo.out=DIR trainer.max_steps=300
+    lanelab-demo --help
 
 1. ``lanelab-synth`` writes the training drives and the held-out drives (fog, dense traffic);
 2. ``lanelab-ingest`` turns them into two clip stores: train / val, and the held-out test;
@@ -15,12 +16,15 @@
    (:mod:`lanelab.evaluation.blind_prior`), scored on the same held-out ground truth. A model
    has learnt something from the camera only where it beats that row.
 
-Everything it runs is configured in ``conf/experiment/demo.yaml``. The drive-log tools run
-as their own commands (lanelab does not import ``data_ingest``).
+Everything it runs is configured in ``conf/experiment/demo.yaml``; any key of it or of
+``lanelab-train``'s config can be overridden. The drive-log tools run as their own commands
+(lanelab does not import ``data_ingest``). A bad option stops it before anything is written,
+in one line (exit status 2); a tool that fails, with the tool's name (exit status 1).
 """
 
 from __future__ import annotations
 
+import logging
 import shutil
 import subprocess
 import sys
@@ -35,13 +39,28 @@ from lanelab.evaluation.blind_prior import NAME as BLIND_PRIOR_NAME
 from lanelab.evaluation.report import REFERENCE_KEY as BLIND_PRIOR
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
-from lanelab.experiment.train import train
+from lanelab.experiment.train import run_errors_exit, train
+from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
 
 COMPARISON_MD = "comparison.md"
 
 
 def main(argv: list[str] | None = None) -> None:
-    overrides = ["experiment=demo", *(sys.argv[1:] if argv is None else argv)]
+    arguments = sys.argv[1:] if argv is None else argv
+    if {"-h", "--help"} & set(arguments):
+        print(__doc__.strip())
+        return
+    logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stdout)
+    logging.captureWarnings(True)
+    route_lightning_logs()
+    ignore_known_warnings()
+    with run_errors_exit("lanelab-demo"):
+        demo(arguments)
+
+
+def demo(arguments: list[str]) -> None:
+    """Run the demo with these overrides of experiment=demo (see the module)."""
+    overrides = ["experiment=demo", *arguments]
     base = load_train_config([*overrides, "paths.output_dir=."])
     demo = base.demo
     out = Path(demo.out)

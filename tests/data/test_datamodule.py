@@ -14,6 +14,7 @@ from omegaconf import OmegaConf
 from synthetic_clips import HEIGHT, WIDTH, build_store
 
 from lanelab.data.datamodule import ClipDataModule
+from lanelab.store import DataError
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
 CLIPS = {"train": [7, 5, 9], "val": [6, 4]}
@@ -87,7 +88,7 @@ def test_two_workers_give_the_same_batches(tmp_path):
 def test_a_stage_without_split_has_no_loader(tmp_path):
     dm = data_module(build_store(tmp_path, CLIPS), "window", splits={"val": None})
     assert dm.val_dataloader() == []
-    with pytest.raises(ValueError, match="no clips in split 'test'"):
+    with pytest.raises(DataError, match="split 'test' has no clips"):
         dm.test_dataloader()
 
 

@@ -1,16 +1,20 @@
 """lanelab-train composed through Hydra: every model x sampler runs, bad options fail by name."""
 
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
+from unittest.mock import patch
 
 import pytest
 from hydra.errors import ConfigCompositionException
+from hydra.utils import instantiate
 from tiny_store import tiny_overrides
 
 from lanelab.config_checks import ConfigError
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.train import train
+from lanelab.store import DataError, read_manifest, write_manifest
 
 SAMPLERS = {"window": ["sampler=window"], "stream": ["sampler=stream", "data.num_frames=1"]}
 
@@ -56,7 +60,7 @@ def test_cli_exits_2_naming_the_key(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("manifest", "message"), [(None, "no clip store manifest there"), ("{not json", "cannot read the manifest")])
-def test_cli_exits_1_with_one_line_on_a_missing_or_broken_store(manifest: str | None, message: str, tmp_path: Path) -> None:
+def test_cli_exits_2_with_one_line_on_a_missing_or_broken_store(manifest: str | None, message: str, tmp_path: Path) -> None:
     store = tmp_path / "store"
     store.mkdir()
     if manifest is not None:
@@ -64,6 +68,36 @@ def test_cli_exits_1_with_one_line_on_a_missing_or_broken_store(manifest: str | 
     command = [sys.executable, "-m", "lanelab.experiment.train", *tiny_overrides(store, tmp_path / "run"),
                f"hydra.run.dir={tmp_path / 'run'}"]  # fmt: skip
     result = subprocess.run(command, check=False, capture_output=True, text=True, timeout=120)
-    assert result.returncode == 1
-    last = result.stderr.strip().splitlines()[-1]
-    assert last.startswith(f"lanelab-train: {store / 'manifest.json'}: {message}") and "Traceback" not in result.stderr
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"lanelab-train: {store / 'manifest.json'}: {message}")
+    assert len(result.stderr.splitlines()) == 1
+    assert not (tmp_path / "run" / "checkpoints").exists()  # nothing built
+
+
+def store_with_splits(tiny_store: Path, root: Path, split: str) -> Path:
+    """The tiny store's clips, all in one split."""
+    manifest = read_manifest(tiny_store)
+    manifest.clips = [dataclasses.replace(clip, split=split) for clip in manifest.clips]
+    write_manifest(root, manifest)
+    (root / "clips").symlink_to(tiny_store / "clips")
+    return root
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (["test=true"], r"split 'train' has no clips \(clips per split: train 0, val 4, test 0\); ingest with "
+                        r"split\.by=clip"),
+        (["train=false", "test=true", "ckpt_path=x.ckpt"], r"split 'test' has no clips"),
+        (["data.splits.train=val", "data.num_frames=50"], r"cannot draw the train samples from split 'val': .*num_frames=50 needs 49"),
+        (["data.splits.train=val", "data.num_frames=0"], r"num_frames=0: a sample needs at least one frame"),
+    ],
+)
+def test_a_store_that_cannot_feed_the_run_is_named_before_the_model_is_built(
+    overrides: list[str], message: str, tiny_store: Path, tmp_path: Path
+) -> None:
+    store = store_with_splits(tiny_store, tmp_path / "store", "val")
+    cfg = load_train_config(tiny_overrides(store, tmp_path / "run", *overrides))
+    with pytest.raises(DataError, match=message), patch("lanelab.experiment.build.instantiate", wraps=instantiate) as built:
+        train(cfg)
+    assert [call.args[0] for call in built.call_args_list] == [cfg.data]  # the datamodule alone

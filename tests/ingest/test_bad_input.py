@@ -157,6 +157,18 @@ def test_empty_and_non_mcap_files(tmp_path):
     assert ingest_one(tmp_path, noise).error == f"{noise}: not an MCAP file (no MCAP magic at its start)"
 
 
+def test_a_log_cut_inside_its_only_chunk_says_where(tmp_path, synth_log):
+    one_chunk = write_log(tmp_path / "one_chunk.mcap", read_log(synth_log("ros2")), chunk_size=1 << 30)
+    (start, length), = chunk_spans(one_chunk)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(one_chunk.read_bytes()[: start + length // 2])
+    result = ingest_one(tmp_path, cut)
+    assert result.status == "failed"
+    assert result.error.startswith(f"{cut}: truncated or unreadable from byte {start} of {start + length // 2}, "
+                                   "before any complete message (")
+    assert result.error.endswith("): nothing to ingest")
+
+
 def test_garbled_label_is_skipped_and_its_frame_kept_unlabeled(tmp_path, synth_log):
     messages = read_log(synth_log("ros2"))
     first_label = next(i for i, m in enumerate(messages) if m.topic == LANES)

@@ -136,6 +136,23 @@ def test_a_garbled_manifest_stops_the_writer_and_stays(tmp_path):
     assert (tmp_path / "manifest.json").read_text() == "{not json"
 
 
+def test_overwrite_sets_a_garbled_manifest_aside_and_starts_afresh(tmp_path):
+    (tmp_path / "manifest.json").write_text("{not json")
+    with open_writer(tmp_path, overwrite=True) as writer:
+        assert writer.set_aside == tmp_path / "manifest.json.unreadable"
+        assert writer.manifest.clips == [] and not (tmp_path / "manifest.json").exists()
+        commit(writer, "a", "a1", "a_0")
+    assert (tmp_path / "manifest.json.unreadable").read_text() == "{not json"
+    assert [clip.clip_id for clip in read_manifest(tmp_path).clips] == ["a_0"]
+
+
+def test_assign_split_moves_clips_and_writes_the_manifest(tmp_path):
+    with open_writer(tmp_path) as writer:
+        commit(writer, "a", "a1", "a_0", "a_1", split="val")
+        writer.assign_split(["a_1"], "train")
+    assert [(c.clip_id, c.split) for c in read_manifest(tmp_path).clips] == [("a_0", "val"), ("a_1", "train")]
+
+
 def test_a_second_writer_is_refused_until_the_first_closes(tmp_path):
     writer = open_writer(tmp_path)
     with pytest.raises(StoreBusy, match=rf"{tmp_path} is being written by another writer \(pid {os.getpid()} on "):

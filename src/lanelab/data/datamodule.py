@@ -29,6 +29,7 @@ from lanelab.data.dataset import ClipDataset
 from lanelab.data.frame_index import SampleKey
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
+from lanelab.store import DataError
 
 SamplerFactory = Callable[..., Sampler[SampleKey]]
 
@@ -90,14 +91,30 @@ class ClipDataModule(pl.LightningDataModule):
             )
         return self._datasets[stage]
 
-    def _loader(self, stage: str, factory: SamplerFactory) -> DataLoader | list:
+    def check(self, stages: Sequence[str]) -> None:
+        """Read what the stages ("train", "val", "test", "predict") need of the store and draw
+        their samplers once, before a model is built: :class:`~lanelab.store.ManifestError` for a
+        missing or unreadable store, :class:`~lanelab.store.DataError` naming the stage's
+        split for one without clips or windows its sampler cannot draw. A stage without a split
+        (``splits.<stage>: null``) needs nothing."""
+        for stage in stages:
+            if self.splits.get(stage) is not None:
+                self._sampler(stage)
+
+    def _sampler(self, stage: str) -> Sampler[SampleKey]:
+        dataset = self.dataset(stage)
+        factory = self.train_sampler if stage == "train" else self.eval_sampler
+        rank, world_size = (None, None) if self.trainer is None else (self.trainer.global_rank, self.trainer.world_size)
+        try:
+            return factory(dataset.index, batch_size=self.batch_size, num_frames=self.num_frames, rank=rank,
+                           world_size=world_size)  # fmt: skip
+        except ValueError as err:  # the samplers' own checks of batch_size, num_frames and their windows
+            raise DataError(f"{self.store}: cannot draw the {stage} samples from split {self.splits[stage]!r}: {err}") from None
+
+    def _loader(self, stage: str) -> DataLoader | list:
         if self.splits.get(stage) is None:
             return []  # Lightning skips a stage without loaders
-        dataset = self.dataset(stage)
-        rank, world_size = (None, None) if self.trainer is None else (self.trainer.global_rank, self.trainer.world_size)
-        sampler = factory(
-            dataset.index, batch_size=self.batch_size, num_frames=self.num_frames, rank=rank, world_size=world_size
-        )
+        dataset, sampler = self.dataset(stage), self._sampler(stage)
         return DataLoader(
             dataset,
             sampler=sampler,
@@ -110,13 +127,13 @@ class ClipDataModule(pl.LightningDataModule):
         )
 
     def train_dataloader(self) -> DataLoader | list:
-        return self._loader("train", self.train_sampler)
+        return self._loader("train")
 
     def val_dataloader(self) -> DataLoader | list:
-        return self._loader("val", self.eval_sampler)
+        return self._loader("val")
 
     def test_dataloader(self) -> DataLoader | list:
-        return self._loader("test", self.eval_sampler)
+        return self._loader("test")
 
     def predict_dataloader(self) -> DataLoader | list:
-        return self._loader("predict", self.eval_sampler)
+        return self._loader("predict")

@@ -52,7 +52,7 @@ from lanelab.data.mirror import mirror_categories, mirror_intrinsics, mirror_tra
 from lanelab.data.targets import LaneTargets
 from lanelab.data.transforms import ResizeCrop
 from lanelab.finite import NonFiniteError
-from lanelab.store import ClipStore, FrameRecord
+from lanelab.store import SPLITS, ClipStore, DataError, FrameRecord
 from lanelab.store.image_codec import decode_image
 
 
@@ -95,9 +95,15 @@ class ClipDataset(Dataset):
         augment: PhotometricAugment | None = None,
     ) -> None:
         self.store = ClipStore(store_dir)
+        if split not in SPLITS:
+            raise DataError(f"{self.store.root}: no split {split!r} (a store's splits: {', '.join(SPLITS)})")
         clip_ids = [clip.clip_id for clip in self.store.clips_in(split)]
         if not clip_ids:
-            raise ValueError(f"{self.store.root}: the store has no clips in split {split!r}")
+            raise DataError(f"{self.store.root}: split {split!r} has no clips (clips per split: "
+                            f"{self.store.split_counts()}); ingest with split.by=clip so that few logs still fill "
+                            "every split, or read another split")
+        if num_frames < 1:
+            raise DataError(f"num_frames={num_frames}: a sample needs at least one frame")
         self.index = FrameIndex.from_store(self.store, clip_ids)
         self.offsets = consecutive_offsets(num_frames)
         self.resize = resize

@@ -38,11 +38,17 @@ class Run:
 
 def build_run(cfg: DictConfig) -> Run:
     """Seed, set the CPU threads, and build a composed, validated config's run; the loggers
-    get the resolved config as their hyperparameters."""
-    pl.seed_everything(cfg.seed, workers=True)
+    get the resolved config as their hyperparameters.
+
+    The store is checked first, for the stages the run will go through (:func:`stages`),
+    before the model and the Trainer are built: :class:`~lanelab.store.ManifestError` (no
+    store or an unreadable one), :class:`~lanelab.store.DataError` (a split without clips, or
+    windows its clips cannot give)."""
+    pl.seed_everything(cfg.seed, workers=True, verbose=False)
     if cfg.cpu_threads is not None:
         torch.set_num_threads(cfg.cpu_threads)
     datamodule = instantiate(cfg.data)
+    datamodule.check(stages(cfg))
     module = instantiate(cfg.model)
     callbacks = [instantiate(node) for node in (cfg.callbacks or {}).values()]
     callbacks += [RunConfigInCheckpoint(cfg), HistoryAtCheckpoint()]
@@ -51,6 +57,13 @@ def build_run(cfg: DictConfig) -> Run:
     for logger in loggers:
         logger.log_hyperparams(OmegaConf.to_container(cfg, resolve=True))
     return Run(datamodule, module, trainer, loggers)
+
+
+def stages(cfg: DictConfig) -> list[str]:
+    """The datamodule's stages a run goes through: fitting reads train and val, testing test,
+    the evaluation predict."""
+    return (["train", "val"] if cfg.train else []) + (["test"] if cfg.test else []) + \
+        (["predict"] if cfg.evaluation.enabled else [])
 
 
 class RunConfigInCheckpoint(pl.Callback):

@@ -19,9 +19,11 @@ from hydra import compose, initialize_config_module
 from omegaconf import MISSING, DictConfig
 
 from lanelab.config_checks import ConfigError, check_known_keys, register_schema
+from lanelab.experiment.run_names import register_resolvers
 from lanelab.experiment.targets import TargetError, check_targets
 
 SCHEMA_NAME = "train_schema"  # the first entry of conf/train.yaml's defaults
+register_resolvers()  # conf/logger/*.yaml name runs with them
 
 
 @dataclass

@@ -13,8 +13,9 @@ the store's tags). Beside the scores, the report shows the blind prior's, scored
 frames (:mod:`lanelab.evaluation.blind_prior`): from the train split of ``prior_store``, for
 a checkpoint by default the store it was trained on; for prediction files only when
 ``prior_store`` is given. Exits with status 1 on a malformed or missing input file, NaN or
-infinity in a prediction or ground-truth file included, and on a checkpoint whose weights hold
-NaN or inf (the message names the file), and 2 on a bad option.
+infinity in a prediction or ground-truth file included, on a damaged clip file and on a
+checkpoint whose weights hold NaN or inf (the message names the file), and 2 on a bad option or
+a store that cannot give the split (none there, an unreadable manifest, a split without clips).
 """
 
 from __future__ import annotations
@@ -26,12 +27,13 @@ import hydra
 from omegaconf import DictConfig
 from omegaconf.errors import MissingMandatoryValue
 
-from lanelab.config_checks import ConfigError, register_schema, typed
+from lanelab.config_checks import BAD_OPTION_STATUS, ConfigError, register_schema, run_hydra_tool, typed
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.finite import NonFiniteError
 from lanelab.json_files import LaneFileError
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
+from lanelab.store import ClipFileError, DataError, ManifestError
 
 register_schema(SCHEMA_NAME, EvalConfig)
 
@@ -65,6 +67,10 @@ def run(cfg: EvalConfig) -> list[Path]:
 
     if cfg.checkpoint is not None:
         from lanelab.experiment.evaluate import evaluate_checkpoint  # torch and Lightning only here: files need neither
+        from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
+
+        route_lightning_logs()  # Lightning, imported now, would print each line twice
+        ignore_known_warnings()
 
         options = {"split": cfg.split, "accelerator": cfg.accelerator, "num_pictures": cfg.pictures.num_frames,
                    "picture_height": cfg.pictures.height, "blind_prior": cfg.blind_prior,
@@ -100,17 +106,20 @@ def _run(cfg: DictConfig) -> None:
         run(validate(typed(cfg, EvalConfig)))
     except MissingMandatoryValue as err:
         print(f"lanelab-eval: missing option {err.full_key}=...", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(BAD_OPTION_STATUS)
     except ConfigError as err:  # a bad option, or a checkpoint that lanelab-train did not write
         print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
-        sys.exit(2)
-    except (LaneFileError, NonFiniteError) as err:
+        sys.exit(BAD_OPTION_STATUS)
+    except (ManifestError, DataError) as err:  # a store that cannot give the split, checked before the model is built
+        print(f"lanelab-eval: {err}", file=sys.stderr)
+        sys.exit(BAD_OPTION_STATUS)
+    except (LaneFileError, NonFiniteError, ClipFileError) as err:
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(1)
 
 
 def main() -> None:
-    _run()
+    run_hydra_tool("lanelab-eval", _run)
 
 
 if __name__ == "__main__":

@@ -26,20 +26,32 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
+import cv2
 import lightning.pytorch as pl
 import numpy as np
+from lightning.pytorch.loggers import Logger, WandbLogger
 from omegaconf import DictConfig, OmegaConf
 
 from lanelab.data.datamodule import ClipDataModule
 from lanelab.evaluation.blind_prior import blind_prior_reference
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
-from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, Report, build_report, to_text, write_report
+from lanelab.evaluation.report import (
+    PICTURES_PNG,
+    REPORT_JSON,
+    REPORT_MARKDOWN,
+    Report,
+    build_report,
+    to_text,
+    write_report,
+)
 from lanelab.experiment.build import build_run, run_config
 from lanelab.experiment.config import validate
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
+from lanelab.lightning.pictures import log_pictures_to, takes_images
 from lanelab.metrics.openlane import evaluate_frames
 from lanelab.metrics.scenarios import OPENLANE_TAG_GROUPS, TABLE7_GROUPS, tag_scenarios
 from lanelab.openlane.file_paths import FILE_PATH_TAG, frame_id, store_file_path
@@ -153,6 +165,21 @@ def store_frames(store: ClipStore, split: str) -> dict[str, StoreFrame]:
         for timestamp, tags in store.read_tags(clip.clip_id):
             frames[frame_id(store_file_path(clip.clip_id, timestamp, tags))] = StoreFrame(clip.clip_id, timestamp, tags)
     return frames
+
+
+def log_evaluation(loggers: Sequence[Logger], report: Report, out: Path, step: int) -> None:
+    """The evaluation report to the run's loggers: its overall numbers as ``eval/<metric>``; to
+    those that take images (W&B, TensorBoard, MLflow) ``<out>/pictures.png`` as ``eval/pictures``; to W&B
+    also ``report.md`` as a text panel (``eval/report``). The files stay in ``out`` for the others."""
+    numbers = {f"eval/{name}": float(value) for name, value in report.overall.items() if value is not None}
+    picture = cv2.imread(str(out / PICTURES_PNG), cv2.IMREAD_COLOR)
+    for logger in loggers:
+        logger.log_metrics(numbers, step=step)
+        if isinstance(logger, WandbLogger):
+            logger.log_text(key="eval/report", columns=["report.md"], data=[[(out / REPORT_MARKDOWN).read_text()]])
+    with_images = [logger for logger in loggers if takes_images(logger)]
+    if picture is not None and with_images:
+        log_pictures_to(with_images, "eval/pictures", [picture[..., ::-1].copy()], step, out)
 
 
 def _picture_frame(store: ClipStore, out: Path, frame: str, where: StoreFrame) -> PictureFrame:

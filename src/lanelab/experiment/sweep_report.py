@@ -21,7 +21,10 @@ a dashed line: the score a model must beat to have learnt anything from the imag
 under the table says which split the prior was scored on, or why there is no such row. The
 CSV holds the jobs alone (the prior's unrounded numbers are in each job's ``metrics.json``).
 
-Jobs without ``metrics.json`` (failed or still running) are listed and left out.
+Jobs without ``metrics.json`` (failed or still running), or whose ``metrics.json`` or
+``overrides.yaml`` cannot be read, are named and left out; jobs that never validated (their
+``trainer.max_steps`` ended them within the first epoch) are named, with how to get validation
+(``trainer.val_check_interval``), on stderr and in the report.
 """
 
 from __future__ import annotations
@@ -74,10 +77,35 @@ def read_jobs(multirun: Path) -> tuple[list[Job], list[Path]]:
         if not (folder / METRICS_JSON).is_file():
             unfinished.append(folder)
             continue
-        lines = yaml.safe_load((folder / ".hydra" / "overrides.yaml").read_text()) or []
-        overrides = dict(line.lstrip("+~").split("=", 1) for line in lines)
-        jobs.append(Job(folder, overrides, json.loads((folder / METRICS_JSON).read_text())))
+        try:
+            lines = yaml.safe_load((folder / ".hydra" / "overrides.yaml").read_text()) or []
+            overrides = dict(line.lstrip("+~").split("=", 1) for line in lines)
+        except (OSError, UnicodeDecodeError, yaml.YAMLError, AttributeError, TypeError, ValueError) as err:
+            _leave_out(folder / ".hydra" / "overrides.yaml", f"not a list of overrides ({err})")
+            continue
+        try:
+            metrics = json.loads((folder / METRICS_JSON).read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+            _leave_out(folder / METRICS_JSON, f"cannot be read ({err})")
+            continue
+        jobs.append(Job(folder, overrides, metrics))
     return jobs, unfinished
+
+
+def _leave_out(path: Path, problem: str) -> None:
+    print(f"lanelab-sweep-report: {path}: {problem}; its job is left out", file=sys.stderr)
+
+
+def never_validated(jobs: list[Job]) -> str | None:
+    """A line naming the jobs whose metrics hold no validation or test metric, and how to get
+    them; None when every job has some."""
+    silent = [job.folder.name for job in jobs if not any(key.startswith(("val/", "test/")) for key in job.metrics)]
+    if not silent:
+        return None
+    return (f"{len(silent)} of {len(jobs)} jobs never validated ({', '.join(silent)}): their {METRICS_JSON} holds "
+            "no val/ or test/ metric. Validation runs at the end of each epoch, so a job whose trainer.max_steps "
+            "ends it within its first epoch has none: validate every N steps with trainer.val_check_interval=N "
+            "(N <= max_steps), or test after fitting with test=true.")
 
 
 def swept_keys(jobs: list[Job]) -> list[str]:
@@ -143,6 +171,10 @@ def write_report(multirun: Path, out: Path) -> list[Path]:
         jobs = [Job(job.folder, {"job": job.folder.name}, job.metrics) for job in jobs]
     rows, columns = table_rows(jobs, keys)
     prior, note = blind_prior_row(jobs, keys, columns)
+    warning = never_validated(jobs)
+    if warning is not None:
+        print(f"lanelab-sweep-report: warning: {warning}", file=sys.stderr)
+        note = f"{warning}\n\n{note}"
     out.mkdir(parents=True, exist_ok=True)
 
     markdown = f"# Sweep {multirun}\n\n" + markdown_table(rows + ([prior] if prior else []), [*keys, *columns])

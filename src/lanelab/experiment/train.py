@@ -9,38 +9,52 @@ evaluates as ``train``, ``test`` and ``evaluation.enabled`` say. The run folder 
 config (``.hydra/``), the checkpoints, the logs, ``metrics.json`` (the last value of every
 logged metric, what ``lanelab-sweep-report`` reads; with the evaluation, also the blind
 prior's scores on the evaluated split as ``blind_prior/<metric>``) and the evaluation report.
-Exits with status 2 on a bad option, naming the key, and with status 1 when NaN or inf stop the
-run (:class:`~lanelab.finite.NonFiniteError`: a store's frame, naming the clip and frame; a loss,
-naming the step and the batch's frames; a checkpoint's weights, naming the file).
+The console shows the run folder first, Rich's progress bar with the loss and validation F1,
+and a closing table (best checkpoint, best validation F1, test F1, steps, time); the same lines
+(and the warnings) go to ``<run>/train.log``.
+
+Exits with status 2 on a bad option, naming the key, and on a store that cannot feed the run
+(none there, an unreadable manifest, a split without clips, windows its clips cannot give),
+checked before the model is built; with status 1 on a damaged clip file and when NaN or inf stop
+the run (:class:`~lanelab.finite.NonFiniteError`: a store's frame, naming the clip and frame; a
+loss, naming the step and the batch's frames; a checkpoint's weights, naming the file).
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import sys
-from collections.abc import Mapping
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 
 import hydra
+import lightning.pytorch as pl
 import torch
 from lightning.pytorch.loggers import WandbLogger
 from omegaconf import DictConfig
 
 from lanelab.atomic_file import atomic_output
-from lanelab.config_checks import ConfigError, register_schema
+from lanelab.config_checks import BAD_OPTION_STATUS, bad_options_exit, register_schema, run_hydra_tool
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
 from lanelab.experiment.build import build_run
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
 from lanelab.finite import NonFiniteError
-from lanelab.store import ClipFileError, ManifestError
+from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
+from lanelab.store import ClipFileError, DataError, ManifestError
 
 register_schema(SCHEMA_NAME, TrainConfig)
+log = logging.getLogger("lanelab.train")
 
 
 def train(cfg: DictConfig) -> dict[str, float]:
     """Run a composed, validated config; the last value of every metric logged by fitting
 and testing (also written to ``metrics.json``)."""
+    start = time.monotonic()
+    log.info("lanelab-train: run folder %s", cfg.paths.output_dir)
     run = build_run(cfg)
     trainer, module, datamodule = run.trainer, run.module, run.datamodule
     weights = cfg.ckpt_path
@@ -54,9 +68,11 @@ and testing (also written to ``metrics.json``)."""
         trainer.test(module, datamodule=datamodule, ckpt_path=weights)
         metrics.update(_floats(trainer.callback_metrics))
     if cfg.evaluation.enabled:
-        from lanelab.experiment.evaluate import evaluate  # the report's imports only when asked for
+        from lanelab.experiment.evaluate import evaluate, log_evaluation  # the report's imports only when asked for
 
         report = evaluate(trainer, module, datamodule, weights, cfg.evaluation)
+        if report is not None:
+            log_evaluation(run.loggers, report, Path(cfg.evaluation.out), trainer.global_step)
         if metrics and report is not None and report.reference is not None and report.reference.overall is not None:
             # The blind prior's scores on the evaluated split, the reference row of lanelab-sweep-report.
             metrics.update({f"{BLIND_PRIOR_PREFIX}{key}": float(value) for key, value in report.reference.overall.items()})
@@ -66,7 +82,42 @@ and testing (also written to ``metrics.json``)."""
             logger.experiment.finish()  # else the next run in this process (a sweep job) would reuse it
     if trainer.is_global_zero and metrics:  # an evaluation alone logs none
         _write_metrics(Path(cfg.paths.output_dir) / METRICS_JSON, metrics)
+    if trainer.is_global_zero:
+        log.info("%s", closing_table(cfg, trainer, metrics, time.monotonic() - start))
     return metrics
+
+
+def closing_table(cfg: DictConfig, trainer: pl.Trainer, metrics: Mapping[str, float], seconds: float) -> str:
+    """What a run leaves: its folder, best checkpoint, best validation F1, test F1, steps and time."""
+    best = getattr(trainer.checkpoint_callback, "best_model_path", "") or None
+    rows = [("run folder", str(cfg.paths.output_dir))]
+    if cfg.train:
+        rows += [("best checkpoint", best or _no_checkpoint(trainer)),
+                 ("best val F1", _percent(metrics.get("val/f1_best"))),
+                 ("steps", f"{trainer.global_step} ({trainer.current_epoch} epochs)")]  # fmt: skip
+    rows.append(("test F1", _percent(metrics.get("test/f1")) if cfg.test else "not tested (test=true tests the best checkpoint)"))
+    if cfg.evaluation.enabled:
+        rows.append(("evaluation", str(Path(cfg.evaluation.out) / "report.md")))
+    rows.append(("time", _duration(seconds)))
+    width = max(len(name) for name, _ in rows)
+    return "\n".join(["", "lanelab-train: done", *(f"  {name:<{width}}  {value}" for name, value in rows)])
+
+
+def _no_checkpoint(trainer: pl.Trainer) -> str:
+    if trainer.fast_dev_run:
+        return "none (fast_dev_run writes none)"
+    if trainer.checkpoint_callback is None:
+        return "none (no checkpoint callback)"
+    return "none (no validation ran: validate within an epoch with trainer.val_check_interval=STEPS)"
+
+
+def _percent(value: float | None) -> str:
+    return "–" if value is None or math.isnan(value) else f"{100 * value:.1f} %"
+
+
+def _duration(seconds: float) -> str:
+    minutes, seconds = divmod(seconds, 60)
+    return f"{int(minutes)} min {seconds:.1f} s" if minutes else f"{seconds:.1f} s"
 
 
 def _floats(metrics: Mapping[str, torch.Tensor]) -> dict[str, float]:
@@ -81,24 +132,34 @@ def _write_metrics(path: Path, metrics: dict[str, float]) -> None:
         tmp.write_text(json.dumps(values, indent=1, sort_keys=True) + "\n")
 
 
+@contextmanager
+def run_errors_exit(tool: str) -> Iterator[None]:
+    """What stops a run, as one line on stderr and the documented exit status: 2 for a bad option
+    or a store that cannot feed the run, 1 for a damaged clip file or NaN / inf."""
+    try:
+        with bad_options_exit(tool):
+            yield
+    except (ManifestError, DataError) as err:  # checked before anything is built
+        print(f"{tool}: {err}", file=sys.stderr)
+        sys.exit(BAD_OPTION_STATUS)
+    except (NonFiniteError, ClipFileError) as err:
+        print(f"{tool}: {err}", file=sys.stderr)
+        sys.exit(1)
+
+
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="train")
 def _run(cfg: DictConfig) -> float | None:
-    try:
-        validate(cfg)
-    except ConfigError as err:
-        print(f"lanelab-train: bad option: {err}", file=sys.stderr)
-        sys.exit(2)
-    try:
-        metrics = train(cfg)
-    except (NonFiniteError, ManifestError, ClipFileError) as err:  # bad numbers, a missing or damaged store
-        print(f"lanelab-train: {err}", file=sys.stderr)
-        sys.exit(1)
+    logging.captureWarnings(True)  # warnings reach train.log too
+    route_lightning_logs()
+    ignore_known_warnings()
+    with run_errors_exit("lanelab-train"):
+        metrics = train(validate(cfg))
     # The value a Hydra sweeper (e.g. optuna) optimises.
     return metrics.get("val/f1")
 
 
 def main() -> None:
-    _run()
+    run_hydra_tool("lanelab-train", _run)
 
 
 if __name__ == "__main__":

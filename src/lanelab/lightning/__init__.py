@@ -5,6 +5,8 @@
 - ``predictions``: model outputs and ground truth as dense lanes;
 - ``openlane_writer``: :class:`OpenLaneWriter`, prediction files in OpenLane's JSON format;
 - ``pictures``: pictures of predictions for the logs; ``optim``: optimisers and lr schedules;
+- ``console``: the progress bar, the model summary and Lightning's log lines on the console;
+- ``lr_monitor``: the learning rate in the logs;
 - ``legacy``: ``SparseLaneSTPModule``, which the run configs of older checkpoints name.
 """
 

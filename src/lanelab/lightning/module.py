@@ -20,6 +20,7 @@ start from ``conf/module/lane_detection.yaml``); it holds no defaults of its own
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any, TypedDict
 
@@ -43,6 +44,8 @@ from lanelab.metrics.openlane_metric import OpenLaneMetric
 from lanelab.models.api import FRAME_KEYS, DetectionOutputs, LaneCriterion, LaneDetector, scored_frames
 from lanelab.models.backbone import load_torchvision_weights
 from lanelab.openlane.file_paths import store_file_path
+
+BEST_VAL_F1_KEY = "lanelab_best_val_f1"  # the checkpoint's entry of LaneDetectionModule.best_val_f1
 
 
 class Pictures(TypedDict):
@@ -100,6 +103,7 @@ class LaneDetectionModule(pl.LightningModule):
         self.pictures = pictures
         self.nms_distance = nms_distance
         self.backbone_weights = backbone["weights"]
+        self.best_val_f1 = math.nan  # the best val/f1 of the run so far, kept in its checkpoints
 
     def setup(self, stage: str) -> None:
         # Before a resumed run's checkpoint is restored, which then overrides these weights.
@@ -135,9 +139,9 @@ class LaneDetectionModule(pl.LightningModule):
                 f"step {self.global_step}: the loss of another process is not finite; no optimiser step was taken"))
         count = int(scored_frames(batch).sum())
         if count:
-            logged = {"train/loss": losses["total"]}
-            logged.update({f"train/loss_{term}": value for term, value in losses.items() if term != "total"})
-            self.log_dict(logged, batch_size=count)
+            self.log("train/loss", losses["total"], batch_size=count, prog_bar=True)
+            self.log_dict({f"train/loss_{term}": value for term, value in losses.items() if term != "total"},
+                          batch_size=count)
         return losses["total"]
 
     def _on_every_rank(self, decision: bool) -> bool:
@@ -158,12 +162,14 @@ class LaneDetectionModule(pl.LightningModule):
         if names:
             raise NonFiniteError(f"step {self.global_step}: not saving a checkpoint of NaN or inf weights "
                                  f"in {describe(names)}")
+        checkpoint[BEST_VAL_F1_KEY] = self.best_val_f1
 
     def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         names = non_finite_tensors(checkpoint["state_dict"])
         if names:
             path = self._trainer.ckpt_path if self._trainer is not None else "the checkpoint"
             raise NonFiniteError(f"{path}: the checkpoint's weights hold NaN or inf in {describe(names)}")
+        self.best_val_f1 = float(checkpoint.get(BEST_VAL_F1_KEY, math.nan))  # older checkpoints: none
 
     # --------------------------------------------------------------- evaluation
     def validation_step(self, batch: Mapping[str, Any], batch_idx: int) -> None:
@@ -189,10 +195,19 @@ class LaneDetectionModule(pl.LightningModule):
             self._log_pictures(batch, predictions, ground_truth, scored)
 
     def _log_metric(self, stage: str) -> None:
-        """Log the metric of all ranks (the metric sums its states across ranks) and reset it."""
+        """Log the metric of all ranks (the metric sums its states across ranks) and reset it;
+        F1 on the progress bar, with the best validation F1 so far (``val/f1_best``)."""
         metric = self.metrics[stage]
-        self.log_dict({f"{stage}/{key}": value.float() for key, value in metric.compute().items()})
+        # The values are the same on every rank already; sync_dist says so to Lightning, which
+        # would warn once per key under DDP otherwise (its all-reduce of equal values changes nothing).
+        values = {f"{stage}/{key}": value.float() for key, value in metric.compute().items()}
+        f1 = values.pop(f"{stage}/f1")
+        self.log(f"{stage}/f1", f1, prog_bar=True, sync_dist=True)
+        self.log_dict(values, sync_dist=True)
         metric.reset()
+        if stage == "val" and not self.trainer.sanity_checking and math.isfinite(float(f1)):
+            self.best_val_f1 = max(self.best_val_f1, float(f1)) if math.isfinite(self.best_val_f1) else float(f1)
+            self.log("val/f1_best", self.best_val_f1, prog_bar=True, sync_dist=True)
 
     def _log_pictures(
         self, batch: Mapping[str, Any], predictions: DenseLanes, ground_truth: DenseLanes, scored: Tensor

@@ -22,7 +22,7 @@ from lanelab.store.manifest import (
     read_manifest,
     write_manifest,
 )
-from lanelab.store.reader import ClipStore
+from lanelab.store.reader import ClipStore, DataError
 from lanelab.store.records import FrameRecord
 from lanelab.store.schema import CLIP_SCHEMA, SPLITS, clip_path, manifest_path
-from lanelab.store.writer import MADE_BY_OPTION, StoreRefused, StoreWriter
+from lanelab.store.writer import MADE_BY_OPTION, UNREADABLE_SUFFIX, StoreRefused, StoreWriter

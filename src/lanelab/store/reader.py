@@ -13,6 +13,11 @@ from lanelab.store.records import FrameRecord
 from lanelab.store.schema import SPLITS, clip_path
 
 
+class DataError(ValueError):
+    """A store cannot give what was asked of it: a split without clips, or samples its clips cannot
+    give; the message names the store and the split and says what to change."""
+
+
 class ClipStore:
     """A clip store opened for reading: its manifest, and windows of frames of its clips.
 
@@ -33,6 +38,10 @@ class ClipStore:
         if split not in SPLITS:
             raise ValueError(f"unknown split {split!r}; one of {', '.join(SPLITS)}")
         return [clip for clip in self.manifest.clips if clip.split == split]
+
+    def split_counts(self) -> str:
+        """How many clips each split has: "train 0, val 2, test 0"."""
+        return ", ".join(f"{split} {len(self.clips_in(split))}" for split in SPLITS)
 
     def clip(self, clip_id: str) -> ClipEntry:
         try:

@@ -10,8 +10,9 @@ A :class:`StoreWriter` holds a store for one run of a writing tool (``lanelab-in
   run left behind: no other writer can be writing them.
 
 - **open or refuse**: a new store takes the tool's ``options``. An existing store's manifest
-  is read (a garbled one raises :class:`~lanelab.store.manifest.ManifestError` and nothing is
-  overwritten). A store that another tool made (``options["made_by"]``) is always refused;
+  is read; a garbled one raises :class:`~lanelab.store.manifest.ManifestError` and nothing is
+  overwritten, unless ``overwrite``: then its bytes are kept as ``manifest.json.unreadable``
+  (:attr:`StoreWriter.set_aside`) and the store starts afresh, every source re-written. A store that another tool made (``options["made_by"]``) is always refused;
   one made with other options is refused unless ``overwrite``: then it takes these options
   and no source counts as unchanged.
 - **skip unchanged**: a source is known by its name (``source_name(path)``);
@@ -31,16 +32,18 @@ The manifest lists sources by path and clips by id, whatever order they were wri
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from lanelab.store.integrity import clip_fault
 from lanelab.store.lock import lock_store
-from lanelab.store.manifest import ClipEntry, Manifest, SourceEntry, read_manifest, write_manifest
+from lanelab.store.manifest import ClipEntry, Manifest, ManifestError, SourceEntry, read_manifest, write_manifest
 from lanelab.store.schema import CLIPS_DIR, clip_path, manifest_path
 
 MADE_BY_OPTION = "made_by"  # names the tool that made a store (lanelab-ingest records none)
+UNREADABLE_SUFFIX = ".unreadable"  # a garbled manifest, set aside by overwrite
 
 
 class StoreRefused(ValueError):
@@ -71,6 +74,7 @@ class StoreWriter:
         self._overwrite = overwrite
         self._marks = tuple(marks)
         self._lock = lock_store(self.root)
+        self.set_aside: Path | None = None  # where a garbled manifest went (overwrite)
         for leftover in (self.root / CLIPS_DIR).glob(".*.partial"):
             leftover.unlink(missing_ok=True)
         try:
@@ -91,9 +95,19 @@ class StoreWriter:
         self.close()
 
     def _open(self, options: dict[str, Any]) -> Manifest:
-        if not manifest_path(self.root).exists():
-            return Manifest(options={**options, **{mark: [] for mark in self._marks}})
-        manifest = read_manifest(self.root)
+        fresh = Manifest(options={**options, **{mark: [] for mark in self._marks}})
+        path = manifest_path(self.root)
+        if not path.exists():
+            return fresh
+        try:
+            manifest = read_manifest(self.root)
+        except ManifestError:
+            if not self._overwrite:
+                raise
+            # Kept for whoever wants to look into it; the next commit writes a new manifest.
+            self.set_aside = path.with_name(path.name + UNREADABLE_SUFFIX)
+            path.replace(self.set_aside)
+            return fresh
         marked = {mark: manifest.options.get(mark, []) for mark in self._marks}
         made_with = {key: value for key, value in manifest.options.items() if key not in self._marks}
         made_by, by = made_with.get(MADE_BY_OPTION), options.get(MADE_BY_OPTION)
@@ -143,6 +157,13 @@ class StoreWriter:
             self.manifest.options[mark] = sorted(others | new_ids if mark in given else others)
         write_manifest(self.root, self.manifest)
         self.discard(stale)
+
+    def assign_split(self, clip_ids: Iterable[str], split: str) -> None:
+        """Move listed clips to ``split`` and write the manifest."""
+        moving = set(clip_ids)
+        self.manifest.clips = [replace(clip, split=split) if clip.clip_id in moving else clip
+                               for clip in self.manifest.clips]
+        write_manifest(self.root, self.manifest)
 
     def discard(self, clip_ids: Iterable[str]) -> None:
         """Delete the files of these clips, but for those the manifest lists (a source that failed
