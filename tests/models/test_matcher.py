@@ -45,7 +45,7 @@ def perfect_prediction(gt_points, gt_mask, categories, order, N: int) -> tuple[t
 
 
 def test_a_perfect_prediction_matches_each_lane_to_its_proposal():
-    B, G, N = 2, 4, 7
+    G, N = 4, 7
     gt_points = control_points(torch.tensor([[-5.0, -1.5, 2.0, 5.5], [-3.0, 0.5, 0.0, 0.0]]))
     gt_mask = torch.tensor([[True, True, True, True], [True, True, False, False]])  # padded lanes
     categories = torch.tensor([[1, 2, 20, 21], [7, 8, 0, 0]])
