@@ -41,13 +41,9 @@ from lanelab.experiment.config import validate
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.metrics.openlane import evaluate_frames
-from lanelab.metrics.scenarios import TABLE7_GROUPS, tag_scenarios
+from lanelab.metrics.scenarios import SCENARIO_GROUPS, tag_scenarios
 from lanelab.store import ClipStore
 from lanelab.store.image_codec import decode_image
-
-# Table 7's scenario groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
-SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}
-
 
 def evaluate(
     trainer: pl.Trainer,

@@ -33,6 +33,8 @@ TABLE7_GROUPS = {
     "weather": "Daytime / Weather",
     "curvature": "Curvature",
 }
+# Table 7's groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
+SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}
 
 
 @dataclass(frozen=True)
