@@ -23,7 +23,7 @@ from mcap.records import Schema
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
-from data_ingest.contract import CALIBRATION, IMAGE, JSON_ONLY, LANES2D, TAGS, TRANSFORMS, TYPES
+from data_ingest.contract import CALIBRATION, IMAGE, JSON_ONLY, LANES2D, OCCLUDERS, TAGS, TRANSFORMS, TYPES
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import RawMessage
 from lanelab.store.image_codec import COMPRESSED_ENCODINGS, RAW_CHANNELS, compressed_format, compressed_size
@@ -212,7 +212,8 @@ def _lanes2d(m: Any, name: str) -> Lanes2DMsg:
     return Lanes2DMsg(_fox_time(m["timestamp"]), str(m["frame_id"]), lanes)
 
 
-_CONVERTERS = {IMAGE: _image, CALIBRATION: _calibration, TRANSFORMS: _transforms, LANES2D: _lanes2d, TAGS: _tags}
+_CONVERTERS = {IMAGE: _image, OCCLUDERS: _image, CALIBRATION: _calibration, TRANSFORMS: _transforms,
+               LANES2D: _lanes2d, TAGS: _tags}
 
 
 # --- field access shared by Foxglove protobuf objects and Foxglove JSON dicts ---------------

@@ -15,13 +15,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from data_ingest.contract import CALIBRATION, IMAGE, LANES, LANES2D, TAGS, TRANSFORMS
+from data_ingest.contract import CALIBRATION, IMAGE, LANES, LANES2D, OCCLUDERS, TAGS, TRANSFORMS
 from data_ingest.ingest.config import IngestConfig
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import ReadReport, read_messages
 from data_ingest.ingest.messages import (
     CalibrationMsg,
     Decoder,
+    ImageMsg,
     Lanes2DMsg,
     LanesMsg,
     MessageError,
@@ -57,6 +58,7 @@ class LogContents:
     tf: TfTree = field(default_factory=TfTree)
     labels: list[LanesMsg] = field(default_factory=list)
     detections: list[Lanes2DMsg] = field(default_factory=list)  # read only for auto-labeling
+    occluders: list[ImageMsg] = field(default_factory=list)  # occluder masks, read only for auto-labeling
     tags: list[TagsMsg] = field(default_factory=list)
     dropped: Counter = field(default_factory=Counter)  # image messages unusable, by reason
     bad_messages: Counter = field(default_factory=Counter)  # other messages skipped, by "topic: reason"
@@ -69,7 +71,7 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
     roles = {topics.image: IMAGE, topics.calibration: CALIBRATION, topics.tf: TRANSFORMS,
              topics.tf_static: TRANSFORMS, topics.lanes: LANES, topics.tags: TAGS}
     if cfg.autolabel.enabled:
-        roles[topics.lanes2d] = LANES2D
+        roles[topics.lanes2d], roles[topics.occluders] = LANES2D, OCCLUDERS
     contents, decoder = LogContents(), Decoder()
     checked: set[int] = set()
     label_batch: list[bytes] = []
@@ -99,6 +101,8 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
                         contents.tf.add(transform, static=raw.topic == topics.tf_static)
                 elif role == LANES2D:
                     contents.detections.append(record)
+                elif role == OCCLUDERS:
+                    contents.occluders.append(record)
                 else:
                     contents.tags.append(record)
             except MessageError as err:
