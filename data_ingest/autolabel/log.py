@@ -20,14 +20,13 @@ import cv2
 import numpy as np
 
 from data_ingest.autolabel.pipeline import DriveFrames, TrajectoryError, auto_label
-from data_ingest.autolabel.quality import Quality, metric_config, score_frame
+from data_ingest.autolabel.quality import Quality, metric_config, score_frame, spread
 from data_ingest.ingest.assemble import PlannedFrame, nearest_stamp
 from data_ingest.ingest.config import IngestConfig
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.messages import ImageMsg, Lanes2DMsg
 from data_ingest.ingest.scan import LogContents
 from data_ingest.ingest.spill import Spill
-from lanelab.evaluation.pictures import PictureFrame, pick_frames
 from lanelab.store.image_codec import decode_image
 
 Message = TypeVar("Message", Lanes2DMsg, ImageMsg)
@@ -68,12 +67,12 @@ def autolabel_log(path: Path, name: str, frames: Sequence[PlannedFrame], content
         frame_id = f"{name}/{records[i].timestamp_ns}"
         quality.results.append((frame_id, score_frame(records[i].lanes, labels.lanes[i], config)))
         quality.tags[frame_id] = dict(records[i].tags)
-    for k in pick_frames(len(scored), cfg.autolabel.pictures):
+    for k in spread(len(scored), cfg.autolabel.pictures):
         i = scored[k]
         image = cv2.cvtColor(decode_image(replace(records[i], image=spill.get(frames[i].image.data))),
                              cv2.COLOR_RGB2BGR)
-        quality.pictures.append(PictureFrame(f"{name} {(stamps[i] - stamps[0]) * 1e-9:.1f} s", image, records[i].K,
-                                             records[i].T_lane_cam, records[i].lanes, labels.lanes[i]))
+        quality.add_picture(f"{name} {(stamps[i] - stamps[0]) * 1e-9:.1f} s", image, records[i].K,
+                            records[i].T_lane_cam, records[i].lanes, labels.lanes[i])
     return labeled, quality, summary
 
 

@@ -16,8 +16,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, write_png
-from lanelab.evaluation.report import PICTURES_PNG, Report, build_report, write_report
+from lanelab.evaluation.report import PICTURES_PNG, Report, build_report, to_text, write_report
 from lanelab.lanes import Lane
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frame
 from lanelab.metrics.scenarios import SCENARIO_GROUPS, tag_scenarios
@@ -39,6 +41,16 @@ class Quality:
         self.results += other.results
         self.tags.update(other.tags)
         self.pictures += other.pictures
+
+    def add_picture(self, title: str, image: np.ndarray, K: np.ndarray, T_lane_cam: np.ndarray,
+                    truth: Sequence[Lane], labels: Sequence[Lane]) -> None:
+        """A frame to draw: its image (H, W, 3) BGR and camera, its true lanes and auto-labels."""
+        self.pictures.append(PictureFrame(title, image, K, T_lane_cam, list(truth), list(labels)))
+
+
+def spread(count: int, wanted: int) -> list[int]:
+    """Indices of ``wanted`` of ``count`` frames spread evenly over them, as the pictures pick them."""
+    return pick_frames(count, wanted)
 
 
 def metric_config() -> OpenLaneConfig:
@@ -70,3 +82,8 @@ def write_quality(quality: Quality, inputs: dict[str, str], out_dir: str | os.Pa
         written.append(write_png(Path(out_dir) / PICTURES_PNG, draw_pictures(chosen, PICTURE_HEIGHT, TOP_VIEW_Y_RANGE)))
     return report, written
 
+
+
+def report_text(report: Report) -> str:
+    """The report for a terminal (lanelab-eval's tables)."""
+    return to_text(report)

@@ -35,7 +35,7 @@ import numpy as np
 from tqdm import tqdm
 
 from data_ingest.autolabel.log import autolabel_log
-from data_ingest.autolabel.quality import Quality, write_quality
+from data_ingest.autolabel.quality import Quality, report_text, write_quality
 from data_ingest.ingest.assemble import PlannedFrame, assemble
 from data_ingest.ingest.clips import cut, draw_split, log_name, split_key, subsample
 from data_ingest.ingest.config import IngestConfig, store_options
@@ -45,7 +45,6 @@ from data_ingest.ingest.scan import scan_log
 from data_ingest.ingest.spill import Spill
 from data_ingest.ingest.summary import print_summary
 from data_ingest.ingest.workers import in_workers
-from lanelab.evaluation.report import to_text
 from lanelab.config_checks import ConfigError
 from lanelab.store import (
     ClipEntry,
@@ -253,7 +252,7 @@ def _report_quality(results: list[LogResult], cfg: IngestConfig) -> None:
     scored = [Path(r.path).name for r in results if r.quality.results]
     report, written = write_quality(quality, {"logs": ", ".join(scored), "store": cfg.output}, out,
                                     cfg.autolabel.pictures)
-    print(f"\nAuto-labels against the true lanes on {cfg.topics.lanes}\n" + to_text(report))
+    print(f"\nAuto-labels against the true lanes on {cfg.topics.lanes}\n" + report_text(report))
     print(f"auto-label report: {', '.join(str(path) for path in written)}")
 
 
