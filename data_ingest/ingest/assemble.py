@@ -118,7 +118,7 @@ def _check_tree(path: Path, tf: TfTree, cfg: IngestConfig, camera_frames: set[st
                            f"/tf and /tf_static hold: {tf.describe()}")
 
 
-def _nearest(stamps: np.ndarray, targets: np.ndarray) -> np.ndarray:
+def nearest_stamp(stamps: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Index into sorted ``stamps`` (M,) of the nearest to each of ``targets`` (N,) -> (N,) int."""
     right = np.clip(np.searchsorted(stamps, targets), 0, len(stamps) - 1)
     left = np.clip(right - 1, 0, len(stamps) - 1)
@@ -149,7 +149,7 @@ def _calibrations(contents: LogContents, images: Sequence[ImageRef], stamps: np.
         return np.zeros((len(stamps), 3, 3))
     calibrations = sorted(contents.calibrations, key=lambda c: c.stamp_ns)
     cal_stamps = np.array([c.stamp_ns for c in calibrations], dtype=np.int64)
-    index = _nearest(cal_stamps, stamps)
+    index = nearest_stamp(cal_stamps, stamps)
     K = np.stack([c.K for c in calibrations])[index]
     if tolerance is not None:
         keep.drop(np.abs(cal_stamps[index] - stamps) > tolerance * 1e9,
@@ -191,7 +191,7 @@ def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray,
             notes.append(f"{topic}: {len(contents.labels)} labels, but no frame to match them")
         return {}, np.array(non_finite, dtype=np.int64)
     label_stamps = np.array([label.stamp_ns for label in contents.labels], dtype=np.int64)
-    frame = _nearest(stamps, label_stamps)
+    frame = nearest_stamp(stamps, label_stamps)
     near = np.abs(stamps[frame] - label_stamps) <= cfg.tolerances.label_s * 1e9
     if not near.all():
         notes.append(f"{topic}: {int((~near).sum())} labels matched no image within tolerances.label_s="

@@ -13,6 +13,7 @@ from typing import Any, Optional, Sequence
 
 from omegaconf import MISSING
 
+from data_ingest.autolabel.config import AutolabelConfig, validate_autolabel
 from data_ingest.contract import FramesConfig, TopicsConfig, check_names
 from lanelab.config_checks import ConfigError, check_choice, check_positive, load_config
 
@@ -54,11 +55,29 @@ class IngestConfig:
     tolerances: TolerancesConfig = field(default_factory=TolerancesConfig)
     clips: ClipsConfig = field(default_factory=ClipsConfig)
     split: SplitConfig = field(default_factory=SplitConfig)
+    autolabel: AutolabelConfig = field(default_factory=AutolabelConfig)
+
+
+AUTOLABEL_OPTION = "autolabel"  # the manifest's options key of a store whose labels were auto-labeled
 
 
 def store_options(cfg: IngestConfig) -> dict[str, Any]:
-    """The options that shape a store's contents (recorded in its manifest); not input, output, workers, verify."""
-    return {key: asdict(getattr(cfg, key)) for key in ("topics", "frames", "tolerances", "clips", "split")}
+    """The options that shape a store's contents (recorded in its manifest); not input, output, workers, verify.
+
+    With ``autolabel.enabled`` they hold ``autolabel``: the labels came from the logs' 2D
+    detections and trajectories (its options and where the detections came from), not from
+    their ``/lanes``. A store of true labels has no such key, as stores had before it existed.
+    """
+    options = {key: asdict(getattr(cfg, key)) for key in ("topics", "frames", "tolerances", "clips", "split")}
+    if not cfg.autolabel.enabled:
+        del options["topics"]["occluders"]  # read by the auto-labeler alone; stores made before it existed stay valid
+    if cfg.autolabel.enabled:
+        settings = {key: value for key, value in asdict(cfg.autolabel).items()
+                    if key not in ("enabled", "report", "report_dir", "pictures")}  # these shape no label
+        options[AUTOLABEL_OPTION] = {"labels_from": f"auto-labeling (SparseLaneSTP §4) of the 2D lane detections "
+                                                    f"on {cfg.topics.lanes2d} along the ego trajectory",
+                                     **settings}
+    return options
 
 
 def validate(cfg: IngestConfig) -> IngestConfig:
@@ -83,6 +102,7 @@ def validate(cfg: IngestConfig) -> IngestConfig:
     if any(value < 0 for value in ratios.values()) or abs(sum(ratios.values()) - 1) > 1e-6:
         raise ConfigError(f"split ratios {ratios} must be >= 0 and sum to 1")
     check_names(cfg.topics, cfg.frames)
+    validate_autolabel(cfg.autolabel)
     return cfg
 
 

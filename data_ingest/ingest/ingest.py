@@ -34,6 +34,8 @@ from typing import Callable, Iterator
 import numpy as np
 from tqdm import tqdm
 
+from data_ingest.autolabel.log import autolabel_log
+from data_ingest.autolabel.quality import Quality, report_text, write_quality
 from data_ingest.ingest.assemble import PlannedFrame, assemble
 from data_ingest.ingest.clips import clips_for_train, cut, draw_split, log_name, split_key, subsample
 from data_ingest.ingest.config import IngestConfig, store_options
@@ -75,6 +77,8 @@ class LogResult:
     warnings: list[str] = field(default_factory=list)
     error: str | None = None
     seconds: float = 0.0
+    autolabeled: str = ""  # with autolabel.enabled: what the auto-labeler made of the log
+    quality: Quality = field(default_factory=Quality)  # auto-labels scored against the log's true lanes
 
 
 def source_name(path: str | Path) -> str:
@@ -146,6 +150,9 @@ def _ingest(path: Path, cfg: IngestConfig, report: ReadReport, result: LogResult
         assembled = assemble(path, contents, cfg)
         result.dropped, result.warnings = assembled.dropped, result.warnings + assembled.notes
         frames = assembled.frames
+        if cfg.autolabel.enabled and frames:
+            frames, result.quality, result.autolabeled = autolabel_log(path, source_name(path), frames, contents,
+                                                                       spill, cfg, result.warnings)
         keep = subsample(np.array([f.record.timestamp_ns for f in frames], dtype=np.int64), cfg.clips.target_fps)
         if not keep.all():
             result.dropped[f"left out for clips.target_fps={cfg.clips.target_fps}"] += int((~keep).sum())
@@ -235,7 +242,26 @@ def _ingest_logs(logs: list[Path], cfg: IngestConfig, writer: StoreWriter) -> li
     if moved:
         writer.assign_split([clip.clip_id for clip in moved], "train")
     print_summary(in_order, writer.manifest, time.perf_counter() - start, cfg.split, moved)
+    if cfg.autolabel.enabled and cfg.autolabel.report:
+        _report_quality(in_order, cfg)
     return in_order
+
+
+def _report_quality(results: list[LogResult], cfg: IngestConfig) -> None:
+    """Print the auto-labels' quality on the logs of this run that have true lanes; write the report."""
+    quality = Quality()
+    for result in results:
+        quality.extend(result.quality)
+    if not quality.results:
+        print(f"auto-label quality: no log of this run has true lanes on {cfg.topics.lanes} to score the "
+              "auto-labels against")
+        return
+    out = Path(cfg.autolabel.report_dir or Path(cfg.output) / "autolabel_report")
+    scored = [Path(r.path).name for r in results if r.quality.results]
+    report, written = write_quality(quality, {"logs": ", ".join(scored), "store": cfg.output}, out,
+                                    cfg.autolabel.pictures)
+    print(f"\nAuto-labels against the true lanes on {cfg.topics.lanes}\n" + report_text(report))
+    print(f"auto-label report: {', '.join(str(path) for path in written)}")
 
 
 def _run(todo: list[tuple[Path, str | None]], cfg: IngestConfig, bar: tqdm) -> Iterator[LogResult]:

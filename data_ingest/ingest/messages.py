@@ -23,7 +23,7 @@ from mcap.records import Schema
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
-from data_ingest.contract import CALIBRATION, IMAGE, JSON_ONLY, TAGS, TRANSFORMS, TYPES
+from data_ingest.contract import CALIBRATION, IMAGE, JSON_ONLY, LANES2D, OCCLUDERS, TAGS, TRANSFORMS, TYPES
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import RawMessage
 from lanelab.store.image_codec import COMPRESSED_ENCODINGS, RAW_CHANNELS, compressed_format, compressed_size
@@ -87,6 +87,24 @@ class LanesMsg:
 
 
 @dataclass(frozen=True)
+class Detection2D:
+    """One 2D lane detection: uv (P, 2) float64 pixels, its score and OpenLane category."""
+
+    uv: np.ndarray
+    score: float
+    category: int
+
+
+@dataclass(frozen=True)
+class Lanes2DMsg:
+    """A ``lanelab.Lanes2D`` message: the 2D lane detections in the image of camera ``frame_id``."""
+
+    stamp_ns: int
+    frame_id: str
+    lanes: list[Detection2D]
+
+
+@dataclass(frozen=True)
 class TagsMsg:
     stamp_ns: int
     tags: dict[str, str]
@@ -117,7 +135,7 @@ class Decoder:
         self._factories = [Ros2DecoderFactory(), ProtobufDecoderFactory()]
         self._decoders: dict[int, Callable[[bytes], Any]] = {}
 
-    def decode(self, raw: RawMessage, role: str) -> ImageMsg | CalibrationMsg | list[Transform] | TagsMsg:
+    def decode(self, raw: RawMessage, role: str) -> ImageMsg | CalibrationMsg | list[Transform] | Lanes2DMsg | TagsMsg:
         """The record of a message of ``role`` (not ``LANES``: see :func:`parse_lanes3d`); MessageError if unusable."""
         message, name = self._deserialize(raw), type_name(raw.schema)
         try:
@@ -182,7 +200,20 @@ def _tags(m: Any, name: str) -> TagsMsg:
     return TagsMsg(_fox_time(m["timestamp"]), {str(k): str(v) for k, v in m["tags"].items()})
 
 
-_CONVERTERS = {IMAGE: _image, CALIBRATION: _calibration, TRANSFORMS: _transforms, TAGS: _tags}
+def _lanes2d(m: Any, name: str) -> Lanes2DMsg:
+    lanes = []
+    for lane in m["lanes"]:
+        uv = np.asarray(lane["uv"], dtype=np.float64).reshape(-1, 2)
+        if not np.isfinite(uv).all():
+            raise MessageError("a detection has NaN or inf pixel coordinates")
+        lanes.append(Detection2D(uv, float(lane["score"]), int(lane["category"])))
+    if not m["frame_id"]:
+        raise MessageError("no frame_id")
+    return Lanes2DMsg(_fox_time(m["timestamp"]), str(m["frame_id"]), lanes)
+
+
+_CONVERTERS = {IMAGE: _image, OCCLUDERS: _image, CALIBRATION: _calibration, TRANSFORMS: _transforms,
+               LANES2D: _lanes2d, TAGS: _tags}
 
 
 # --- field access shared by Foxglove protobuf objects and Foxglove JSON dicts ---------------

@@ -15,13 +15,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from data_ingest.contract import CALIBRATION, IMAGE, LANES, TAGS, TRANSFORMS
+from data_ingest.contract import CALIBRATION, IMAGE, LANES, LANES2D, OCCLUDERS, TAGS, TRANSFORMS
 from data_ingest.ingest.config import IngestConfig
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import ReadReport, read_messages
 from data_ingest.ingest.messages import (
     CalibrationMsg,
     Decoder,
+    ImageMsg,
+    Lanes2DMsg,
     LanesMsg,
     MessageError,
     TagsMsg,
@@ -55,6 +57,8 @@ class LogContents:
     calibrations: list[CalibrationMsg] = field(default_factory=list)
     tf: TfTree = field(default_factory=TfTree)
     labels: list[LanesMsg] = field(default_factory=list)
+    detections: list[Lanes2DMsg] = field(default_factory=list)  # read only for auto-labeling
+    occluders: list[ImageMsg] = field(default_factory=list)  # occluder masks, read only for auto-labeling
     tags: list[TagsMsg] = field(default_factory=list)
     dropped: Counter = field(default_factory=Counter)  # image messages unusable, by reason
     bad_messages: Counter = field(default_factory=Counter)  # other messages skipped, by "topic: reason"
@@ -66,6 +70,8 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
     topics = cfg.topics
     roles = {topics.image: IMAGE, topics.calibration: CALIBRATION, topics.tf: TRANSFORMS,
              topics.tf_static: TRANSFORMS, topics.lanes: LANES, topics.tags: TAGS}
+    if cfg.autolabel.enabled:
+        roles[topics.lanes2d], roles[topics.occluders] = LANES2D, OCCLUDERS
     contents, decoder = LogContents(), Decoder()
     checked: set[int] = set()
     label_batch: list[bytes] = []
@@ -93,6 +99,10 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
                 elif role == TRANSFORMS:
                     for transform in record:
                         contents.tf.add(transform, static=raw.topic == topics.tf_static)
+                elif role == LANES2D:
+                    contents.detections.append(record)
+                elif role == OCCLUDERS:
+                    contents.occluders.append(record)
                 else:
                     contents.tags.append(record)
             except MessageError as err:
@@ -111,10 +121,12 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
 
 
 def _check_required(path: Path, cfg: IngestConfig, report: ReadReport) -> None:
-    """Raise :class:`LogError` when the image, calibration or /tf topic has no message; list what the log has."""
+    """Raise :class:`LogError` when the image, calibration or /tf topic has no message, or
+    the 2D detections when auto-labeling; list what the log has."""
     topics = cfg.topics
     missing = [topic for topic in (topics.image, topics.calibration, topics.tf) if report.topics[topic] == 0]
-    if not missing:
+    no_detections = cfg.autolabel.enabled and report.topics[topics.lanes2d] == 0
+    if not missing and not no_detections:
         return
     if not report.topics:
         if report.break_byte is not None:  # e.g. cut inside its only chunk, which held the channels too
@@ -123,5 +135,9 @@ def _check_required(path: Path, cfg: IngestConfig, report: ReadReport) -> None:
         raise LogError(f"{path}: the log has no channels and no messages")
     have = ", ".join(f"{topic} ({type_name(report.schemas.get(topic)) or 'no schema'}, {count} messages)"
                      for topic, count in sorted(report.topics.items()))
+    if not missing:
+        raise LogError(f"{path}: no 2D lane detections on {topics.lanes2d}, which auto-labeling "
+                       f"(autolabel.enabled=true) needs (set topics.lanes2d to the log's lanelab.Lanes2D topic); "
+                       f"the log has: {have}")
     raise LogError(f"{path}: missing required topic{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
                    f"(set topics.* to the log's names); the log has: {have}")

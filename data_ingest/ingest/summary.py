@@ -25,6 +25,8 @@ def print_summary(results: list[LogResult], manifest: Manifest, seconds: float, 
         print(f"{Path(r.path).name:<32}{r.status:>10}{counts}")
         if r.error:
             print(f"    error: {r.error}")
+        if r.autolabeled:
+            print(f"    auto-labels: {r.autolabeled}")
         for warning in r.warnings:
             print(f"    warning: {warning}")
 

@@ -115,16 +115,24 @@ class SyntheticDrive:
 
     def frame(self, index: int) -> SynthFrame:
         """Frame ``index`` (0-based): image, pose and ground truth."""
+        return self._frame(index, render=True)
+
+    def unrendered_frame(self, index: int) -> SynthFrame:
+        """Frame ``index`` without its image (``image`` is empty): pose, ground truth and detections,
+        as :meth:`frame` gives them, for work that needs no pixels."""
+        return self._frame(index, render=False)
+
+    def _frame(self, index: int, render: bool) -> SynthFrame:
         t_ns = self.timestamp(index)
         t = t_ns * 1e-9
         T_world_base = self.ego.pose(t)
         s, d = (float(x) for x in self.ego.place(t))
         view = View(self.camera, T_world_base)
         vehicles = self.traffic.boxes(t, s - BEHIND_EGO_M, s + self.draw_range)
-        image = self.renderer.render(view, s, vehicles, index)
+        image = self.renderer.render(view, s, vehicles, index) if render else np.zeros((0, 0, 3), np.uint8)
         occluders = Boxes.concat([self.scenery.overlapping(s, s + ARC_MARGIN * self.cfg.world.max_range_m), vehicles])
         truth = self.labeler.label(index, view, s, d, occluders)
-        return SynthFrame(index, t_ns, image, T_world_base, truth.lanes, truth.lanes2d, truth.tags)
+        return SynthFrame(index, t_ns, image, T_world_base, truth.lanes, truth.lanes2d, truth.tags, truth.occluders)
 
     def frames(self) -> Iterator[SynthFrame]:
         """All frames in time order."""

@@ -50,6 +50,8 @@ class SynthFrame:
     T_world_base: (4, 4) ego pose, ``odom`` <- ``base_link``, at ``timestamp_ns``.
     lanes: the ground truth in the lane frame of that pose; a point's visibility is 0 where it
     is outside the image, behind an occluding vehicle or hidden behind a crest.
+    occluders: (H, W) bool, the pixels that show a vehicle or a roadside object (a segmentation
+    network's occluder mask); None: not made.
     """
 
     index: int
@@ -59,3 +61,4 @@ class SynthFrame:
     lanes: list[Lane]
     lanes2d: list[Lane2D]
     tags: dict[str, str] = field(default_factory=dict)
+    occluders: np.ndarray | None = None

@@ -1,11 +1,13 @@
-"""Ground truth of a frame: 3D lanes with visibility, noisy 2D detections, scenario tags.
+"""Ground truth of a frame: 3D lanes with visibility, noisy 2D detections, an occluder mask, scenario tags.
 
 Lanes are sampled on the road (every metre near the ego, every 2 m farther, at fixed arc
 lengths so consecutive frames sample the same road points), expressed in the lane frame of
 DESIGN.md and projected with :func:`lanelab.geometry.camera.project_lane_points`. A point is
 visible (1) unless it is outside the image, behind a box (a vehicle, a barrier, a building)
 or behind a crest; the latter two are worked out independently of the renderer: boxes are
-filled into a depth buffer, and the line of sight is tested against the road's surface.
+filled into a depth buffer, and the line of sight is tested against the road's surface. The
+occluder mask is where that buffer holds a box: what a segmentation network would mark as
+vehicles and roadside objects (the auto-labeler's occlusion input).
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ class FrameTruth:
     lanes: list[Lane]
     lanes2d: list[Lane2D]
     tags: dict[str, str]
+    occluders: np.ndarray  # (H, W) bool: a box covers the pixel
 
 
 @dataclass(frozen=True)
@@ -73,7 +76,8 @@ class Labeler:
 
     def label(self, frame_index: int, view: View, ego_s: float, ego_d: float, occluders: Boxes) -> FrameTruth:
         """Ground truth of frame ``frame_index`` seen by ``view``, base_link at road coordinates (ego_s, ego_d)."""
-        points, in_view, occluded = self._points(view, ego_s, ego_d, occluders)
+        buffer = self._box_depths(view, occluders)
+        points, in_view, occluded = self._points(view, ego_s, ego_d, buffer)
         lanes = []
         for k, line in enumerate(self.road.cross_section.lines):
             mine = points.line == k
@@ -82,9 +86,10 @@ class Labeler:
                                   track_id=line.track_id))
         rng = np.random.default_rng([*self.seed, frame_index])
         near = points.lane[:, 1] <= OCCLUSION_RANGE_M
-        return FrameTruth(lanes, self._detections(points, rng), self._tags(ego_s, in_view & near, occluded & near))
+        return FrameTruth(lanes, self._detections(points, rng), self._tags(ego_s, in_view & near, occluded & near),
+                          np.isfinite(buffer))
 
-    def _points(self, view: View, ego_s: float, ego_d: float, occluders: Boxes):
+    def _points(self, view: View, ego_s: float, ego_d: float, box_depths: np.ndarray):
         """The frame's label points, and (N,) masks of those in view (in the image, not behind a crest)
         and of those among them hidden by boxes."""
         line, s, d = self._samples(ego_s)
@@ -98,7 +103,7 @@ class Labeler:
         uv, depth = uv.numpy(), depth.numpy()
         cam_s = ego_s + self.camera.T_base_cam[0, 3]
         in_view = inside & ~self._behind_crest(s, d, world, view.position, cam_s, ego_d)
-        occluded = in_view & self._behind_boxes(view, occluders, uv, depth, in_view)
+        occluded = in_view & _behind_boxes(box_depths, uv, depth, in_view)
         points = _Points(line, lane, uv, in_view & ~occluded)
         return points, in_view, occluded
 
@@ -128,26 +133,19 @@ class Labeler:
         ground = self.road.height(cam_s + f * (s - cam_s), cam_d + f * (d - cam_d))
         return (ray_z < ground - CREST_TOLERANCE_M).any(axis=0)
 
-    def _behind_boxes(self, view: View, boxes: Boxes, uv: np.ndarray, depth: np.ndarray,
-                      candidates: np.ndarray) -> np.ndarray:
-        """(N,) bool: the point's pixel shows a box nearer than the point (a depth buffer of the boxes)."""
-        hidden = np.zeros(len(uv), bool)
-        if not len(boxes) or not candidates.any():
-            return hidden
+    def _box_depths(self, view: View, boxes: Boxes) -> np.ndarray:
+        """(H, W) float32 depth buffer of the boxes: per pixel the depth of the nearest box it shows, inf for none."""
+        buffer = np.full((self.camera.height, self.camera.width), np.inf, np.float32)
+        if not len(boxes):
+            return buffer
         quads, outward, box, _ = boxes.face_quads(self.road)
         seen = view.polygons(quads, outward)
         # A box's nearest corner stands for all of it: points under or behind it are farther.
         nearest = view.to_camera(boxes.corners(self.road))[..., 2].min(axis=1)[box[seen.index]]
-        buffer = np.full((self.camera.height, self.camera.width), np.inf, np.float32)
         order = np.argsort(-nearest)
         for polygon, z in zip(cv_points(seen.uv[order]), nearest[order].tolist()):
             cv2.fillConvexPoly(buffer, polygon, z, cv2.LINE_8, SUBPIXEL_BITS)
-        # Silhouette edges are uncertain by a pixel (thin gaps between a line and a wall behind it):
-        # shrink them by one, so only points well inside count as hidden.
-        buffer = cv2.dilate(buffer, np.ones((3, 3), np.uint8))
-        col, row = np.floor(uv[candidates]).astype(np.int64).T
-        hidden[candidates] = buffer[row, col] < depth[candidates]
-        return hidden
+        return buffer
 
     def _detections(self, points: _Points, rng: np.random.Generator) -> list[Lane2D]:
         """What a decent 2D lane detector would find: near visible runs, jittered, some missed, a few false."""
@@ -218,6 +216,19 @@ def _ahead_and_ascending(line: np.ndarray, y: np.ndarray, max_range: float) -> n
         stop = first + (np.argmin(rising) if not rising.all() else len(rising))
         keep[index[first:stop]] = True
     return keep
+
+
+def _behind_boxes(box_depths: np.ndarray, uv: np.ndarray, depth: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """(N,) bool: the point's pixel shows a box nearer than the point; box_depths (H, W) the boxes' depth buffer."""
+    hidden = np.zeros(len(uv), bool)
+    if not candidates.any() or not np.isfinite(box_depths).any():
+        return hidden
+    # Silhouette edges are uncertain by a pixel (thin gaps between a line and a wall behind it):
+    # shrink them by one, so only points well inside count as hidden.
+    buffer = cv2.dilate(box_depths, np.ones((3, 3), np.uint8))
+    col, row = np.floor(uv[candidates]).astype(np.int64).T
+    hidden[candidates] = buffer[row, col] < depth[candidates]
+    return hidden
 
 
 def _runs(index: np.ndarray) -> list[np.ndarray]:

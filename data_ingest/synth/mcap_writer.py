@@ -5,8 +5,9 @@ One pass over the drive's camera frames writes, on the topics of ``cfg.topics``:
 - ``/tf_static`` once: the camera mount as base_link -> camera body -> optical frame;
 - ``/tf`` at ``cfg.tf_rate_hz``: the ego pose odom -> base_link, faster than the camera,
   so a reader has to interpolate it at image times;
-- per frame: the image, its calibration, ``/lanes2d`` and ``/tags``, and ``/lanes`` on
-  every ``cfg.label_every``-th frame.
+- per frame: the image, its calibration, its occluder mask (a PNG, white where a vehicle
+  or a roadside object shows), ``/lanes2d`` and ``/tags``, and ``/lanes`` on every
+  ``cfg.label_every``-th frame.
 
 Sensor messages come from the encoder of ``cfg.encoding`` (:mod:`encoders`); the lanelab
 JSON channels (:mod:`lanelab_msgs`) are the same in every encoding. Like a real recorder,
@@ -224,7 +225,8 @@ def _add_channels(log: _Recorder, encoder: MessageEncoder, cfg: SynthConfig) -> 
     topics = cfg.topics
     image_role = RAW_IMAGE if cfg.image_format == "raw" else COMPRESSED_IMAGE
     for topic, role in ((topics.tf_static, TRANSFORMS), (topics.tf, TRANSFORMS),
-                        (topics.image, image_role), (topics.calibration, CALIBRATION)):
+                        (topics.image, image_role), (topics.calibration, CALIBRATION),
+                        (topics.occluders, COMPRESSED_IMAGE)):
         log.add_channel(topic, encoder.schema(role), encoder.message_encoding)
     for topic, name in ((topics.lanes, LANES3D_TYPE), (topics.lanes2d, LANES2D_TYPE), (topics.tags, TAGS_TYPE)):
         schema = Schema(name, SchemaEncoding.JSONSchema, dumps(lanelab_msgs.SCHEMAS[name]))
@@ -241,6 +243,9 @@ def _publish_frame(log: _Recorder, encoder: MessageEncoder, frame: SynthFrame, c
         data = encode_image(frame.image, cfg.image_format, cfg.jpeg_quality)
         log.publish(topics.image, t, encoder.compressed_image(t, camera.frame_id, data, cfg.image_format))
     log.publish(topics.calibration, t, encoder.calibration(t, camera))
+    if frame.occluders is not None:
+        mask = encode_image(frame.occluders.astype(np.uint8) * 255, "png", cfg.jpeg_quality)
+        log.publish(topics.occluders, t, encoder.compressed_image(t, camera.frame_id, mask, "png"))
     if frame.index % cfg.label_every == 0:
         frame_id, lanes = labels_in(frame, cfg)
         log.publish(topics.lanes, t, dumps(lanelab_msgs.lanes3d(t, frame_id, lanes)))
@@ -249,7 +254,7 @@ def _publish_frame(log: _Recorder, encoder: MessageEncoder, frame: SynthFrame, c
 
 
 def encode_image(image: np.ndarray, image_format: str, jpeg_quality: int) -> bytes:
-    """(H, W, 3) uint8 BGR image -> JPEG or PNG file bytes."""
+    """(H, W, 3) uint8 BGR or (H, W) gray image -> JPEG or PNG file bytes."""
     ext, params = {"jpeg": (".jpg", [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]), "png": (".png", [])}[image_format]
     ok, buffer = cv2.imencode(ext, image, params)
     if not ok:

@@ -90,14 +90,17 @@ def demo(arguments: list[str]) -> None:
 def prepare_stores(demo: DictConfig, out: Path, start: float) -> tuple[Path, Path]:
     """Synthesize the demo's training and held-out drives under ``out/logs`` and ingest them
     into ``out/clips_train`` (train / val) and ``out/clips_test``; the two stores' paths.
+    With ``demo.train_store``, that store is trained on and no training drive is made.
     ``start``: the monotonic time the progress lines count from."""
     _step(start, "synthesizing drive logs")
-    _tool("lanelab-synth", f"output_dir={out / 'logs' / 'train'}", *demo.synth, *demo.train_logs)
+    if not demo.train_store:
+        _tool("lanelab-synth", f"output_dir={out / 'logs' / 'train'}", *demo.synth, *demo.train_logs)
     for name, options in demo.test_logs.items():
         _tool("lanelab-synth", f"output_dir={out / 'logs' / 'test' / name}", *demo.synth, *options)
     _step(start, "ingesting them into clip stores")
-    train_store, test_store = out / "clips_train", out / "clips_test"
-    _tool("lanelab-ingest", f"input={out / 'logs' / 'train'}", f"output={train_store}", *demo.ingest_train)
+    train_store, test_store = Path(demo.train_store or out / "clips_train"), out / "clips_test"
+    if not demo.train_store:
+        _tool("lanelab-ingest", f"input={out / 'logs' / 'train'}", f"output={train_store}", *demo.ingest_train)
     _tool("lanelab-ingest", f"input={out / 'logs' / 'test'}", f"output={test_store}", *demo.ingest_test)
     return train_store, test_store
 

@@ -80,6 +80,7 @@ class FakeDrive:
                 lanes2d=self._lanes2d(index),
                 tags={"weather": "fog", "daytime": "day", "environment": "rural",
                       "curvature": "straight" if index < count // 2 else "curve"},
+                occluders=self._occluders(index),
             )
 
     def _image(self, index: int) -> np.ndarray:
@@ -91,6 +92,11 @@ class FakeDrive:
         for k in range(3):
             cv2.line(image, (w // 2 + (k - 1) * w // 3, h), (w // 2 + (k - 1) * 8 + index, h // 2), (255, 255, 255), 2)
         return image
+
+    def _occluders(self, index: int) -> np.ndarray:
+        mask = np.zeros((self.camera.height, self.camera.width), bool)
+        mask[self.camera.height // 2: self.camera.height // 2 + 10, index: index + 20] = True
+        return mask
 
     def _lanes(self, index: int) -> list[Lane]:
         y = np.linspace(3.0, 80.0, 25)

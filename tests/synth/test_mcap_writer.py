@@ -136,6 +136,7 @@ def content(path: Path) -> dict[str, list]:
         "tf_static": [transforms(m) for _, m in messages["/tf_static"]],
         "tf": [transforms(m) for _, m in messages["/tf"]],
         "images": [image(m) for _, m in messages["/camera/front/image"]],
+        "occluders": [image(m) for _, m in messages["/camera/front/occluders"]],
         "calibration": [calibration(m) for _, m in messages["/camera/front/camera_info"]],
         **{topic: [m for _, m in messages[topic]] for topic in LANELAB_SCHEMAS},
     }
@@ -189,6 +190,7 @@ def test_channels_schemas_counts_and_metadata(write, encoding):
     expected = {"/tf": SENSOR_SCHEMAS[encoding]["tf"], "/tf_static": SENSOR_SCHEMAS[encoding]["tf"],
                 "/camera/front/image": SENSOR_SCHEMAS[encoding]["image"],
                 "/camera/front/camera_info": SENSOR_SCHEMAS[encoding]["calibration"],
+                "/camera/front/occluders": SENSOR_SCHEMAS[encoding]["image"],
                 **{topic: (name, "jsonschema", "json") for topic, name in LANELAB_SCHEMAS.items()}}
     assert set(channels) == set(expected)
     for topic, (name, schema_encoding, message_encoding) in expected.items():
@@ -207,6 +209,7 @@ def test_channels_schemas_counts_and_metadata(write, encoding):
         "/tf": round(cfg.duration_s * cfg.tf_rate_hz) + 1,  # both ends of [0, duration]
         "/camera/front/image": num_frames,
         "/camera/front/camera_info": num_frames,
+        "/camera/front/occluders": num_frames,
         "/lanes": math.ceil(num_frames / cfg.label_every),
         "/lanes2d": num_frames,
         "/tags": num_frames,
@@ -228,7 +231,7 @@ def test_stamps_are_sensor_times_and_log_times_lag_them(write, encoding):
                 assert stamp <= record.log_time <= stamp + MAX_LAG_NS, topic
             assert record.publish_time == record.log_time
     frame_times = [frame.timestamp_ns for frame in drive.frames()]
-    for topic in ("/camera/front/image", "/camera/front/camera_info", "/lanes2d", "/tags"):
+    for topic in ("/camera/front/image", "/camera/front/camera_info", "/camera/front/occluders", "/lanes2d", "/tags"):
         assert [stamp_ns(m) for _, m in messages[topic]] == frame_times, topic
     assert [stamp_ns(m) for _, m in messages["/lanes"]] == frame_times[:: cfg.label_every]
     tf_period = round(NS / cfg.tf_rate_hz)
@@ -265,8 +268,11 @@ def test_encodings_carry_the_same_content(write):
         np.testing.assert_array_equal(np.reshape(calib["K"], (3, 3)), camera.K)
         np.testing.assert_array_equal(np.reshape(calib["P"], (3, 4)), np.hstack([camera.K, np.zeros((3, 1))]))
         assert calib["D"] == [0.0] * 5 and calib["R"] == np.eye(3).ravel().tolist()
-    for frame, img, lanes2d, tags in zip(frames, reference["images"], reference["/lanes2d"], reference["/tags"],
-                                         strict=True):
+    for frame, img, mask, lanes2d, tags in zip(frames, reference["images"], reference["occluders"],
+                                               reference["/lanes2d"], reference["/tags"], strict=True):
+        assert (mask["format"], mask["frame_id"]) == ("png", camera.frame_id)  # lossless: exactly the mask
+        np.testing.assert_array_equal(cv2.imdecode(np.frombuffer(mask["data"], np.uint8), cv2.IMREAD_GRAYSCALE) > 0,
+                                      frame.occluders)
         assert (img["format"], img["frame_id"]) == ("jpeg", camera.frame_id)
         decoded = cv2.imdecode(np.frombuffer(img["data"], np.uint8), cv2.IMREAD_COLOR)
         assert np.abs(decoded.astype(int) - frame.image).mean() < 6  # JPEG at quality 90 of a noisy render

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Optional
 
 from hydra import compose, initialize_config_module
 from omegaconf import MISSING, DictConfig
@@ -61,6 +61,7 @@ class DemoConfig:
     test_logs: dict[str, list[str]] = MISSING
     ingest_train: list[str] = MISSING
     ingest_test: list[str] = MISSING
+    train_store: Optional[str] = None
 
 
 @dataclass

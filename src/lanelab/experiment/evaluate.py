@@ -53,13 +53,10 @@ from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.lightning.pictures import log_pictures_to, takes_images
 from lanelab.metrics.openlane import evaluate_frames
-from lanelab.metrics.scenarios import OPENLANE_TAG_GROUPS, TABLE7_GROUPS, tag_scenarios
+from lanelab.metrics.scenarios import OPENLANE_TAG_GROUPS, SCENARIO_GROUPS, tag_scenarios
 from lanelab.openlane.file_paths import FILE_PATH_TAG, frame_id, store_file_path
 from lanelab.store import ClipStore
 from lanelab.store.image_codec import decode_image
-
-# Table 7's scenario groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
-SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -37,6 +37,8 @@ TABLE7_GROUPS = {
 # cases of their scenario lists (``curve: Curve``, SparseLaneSTP's Table 4), then scene.json's
 # (Table 7).
 OPENLANE_TAG_GROUPS = {**{case: "OpenLane" for case in OPENLANE_SCENARIOS}, **TABLE7_GROUPS}
+# Table 7's groups and the synthetic drives' own tags (occlusion by traffic, slopes, merges).
+SCENARIO_GROUPS = {**TABLE7_GROUPS, "occlusion": "Occlusion", "slope": "Slope", "merge_split": "Merge / split"}
 
 
 @dataclass(frozen=True)

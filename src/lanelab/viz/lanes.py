@@ -82,7 +82,8 @@ def _draw_lane(
         layers.insert(0, (~visible, HIDDEN_COLOR, 1))
     for keep, layer_color, width in layers:
         # a hidden point next to a visible one joins both runs, so lines do not break
-        keep = drawable & (keep | np.convolve(keep, [1, 1, 1], "same").astype(bool))
+        # (the full convolution's middle: "same" returns 3 values for a lane of 2 points)
+        keep = drawable & (keep | np.convolve(keep, [1, 1, 1])[1:-1].astype(bool))
         for run in _polyline_runs(pixels, keep):
             cv2.polylines(canvas, [run], False, layer_color, width, cv2.LINE_AA, shift=4)
 

@@ -1,0 +1,91 @@
+"""The line tracker: one line, one track and one id; lanes that end; false detections; gaps."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from data_ingest.autolabel.projection import Observation
+from data_ingest.autolabel.tracker import LineTracker
+
+STEP = 2  # nodes (metres) the ego advances per frame
+NEAR, FAR = 5, 35  # nodes ahead of the ego that a frame's detections cover
+
+
+def tracker() -> LineTracker:
+    return LineTracker(node_spacing_m=1.0, gate_m=1.5, confirm_hits=3, max_misses=5, merge_m=0.4,
+                       process_noise_m=0.01)
+
+
+def seen(frame: int, offset: float, rng: np.random.Generator, end: int | None = None, category: int = 1,
+         sigma: float = 0.05) -> Observation | None:
+    """Frame ``frame``'s detection of the line at lateral ``offset`` (ending at node ``end``)."""
+    first, last = frame * STEP + NEAR, frame * STEP + FAR
+    if end is not None:
+        last = min(last, end)
+    if last - first < 3:
+        return None
+    nodes = np.arange(first, last + 1)
+    return Observation(frame, nodes, offset + rng.normal(0, sigma, len(nodes)), np.full(len(nodes), sigma),
+                       category, 0.9)
+
+
+def run(lines: list[dict], frames: int, seed: int = 0) -> LineTracker:
+    """Track ``lines`` (keyword arguments of :func:`seen`) over ``frames`` frames."""
+    rng = np.random.default_rng(seed)
+    tracked = tracker()
+    for t in range(frames):
+        observations = [o for line in lines if (o := seen(t, rng=rng, **line)) is not None]
+        window = (t * STEP + NEAR, t * STEP + FAR)
+        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
+                     passed_node=t * STEP)
+    return tracked
+
+
+def test_a_straight_lane_seen_for_100_frames_is_one_track_with_one_id():
+    lines = run([{"offset": 1.75}], 100).lines(curvature_noise=0.003, min_length_m=10, max_std_m=0.5)
+    assert len(lines) == 1
+    (line,) = lines
+    assert line.track_id == 0 and not line.ended
+    assert line.nodes[0] == NEAR and line.nodes[-1] == 99 * STEP + FAR  # all of it, from the first view on
+    assert np.abs(line.d - 1.75).max() < 0.05  # 30 noisy views of each node, fused
+
+
+def test_a_lane_that_ends_yields_a_track_that_ends_there_while_its_neighbour_goes_on():
+    lines = run([{"offset": 1.75}, {"offset": -1.75, "end": 120, "category": 2}], 100)
+    by_offset = {round(float(np.median(line.d))): line for line in lines.lines(0.003, 10, 0.5)}
+    assert sorted(by_offset) == [-2, 2]
+    ending, going = by_offset[-2], by_offset[2]
+    assert ending.ended and ending.nodes[-1] == 120 and ending.category == 2
+    assert not going.ended and going.nodes[-1] == 99 * STEP + FAR
+    assert {ending.track_id, going.track_id} == {0, 1}
+
+
+def test_ids_stay_with_their_lines_and_a_one_off_false_detection_is_no_line():
+    rng = np.random.default_rng(3)
+    tracked = tracker()
+    ids_over_time = []
+    for t in range(60):
+        observations = [seen(t, 1.75, rng), seen(t, -1.75, rng), seen(t, 5.25, rng)]
+        if t == 30:  # a false detection between two lines, once
+            observations.append(Observation(t, np.arange(t * STEP + 8, t * STEP + 16), np.full(8, 3.5),
+                                            np.full(8, 0.05), 1, 0.4))
+        window = (t * STEP + NEAR, t * STEP + FAR)
+        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
+                     passed_node=t * STEP)
+        ids_over_time.append({round(float(np.nanmedian(track.d))): track.track_id for track in tracked.tracks
+                              if track.confirmed})
+    lines = tracked.lines(0.003, 10, 0.5)
+    np.testing.assert_allclose(sorted(np.median(line.d) for line in lines), [-1.75, 1.75, 5.25], atol=0.05)
+    assert all(ids == ids_over_time[-1] for ids in ids_over_time[3:])  # confirmed on the third frame, never renamed
+
+
+def test_a_line_missed_for_a_few_frames_keeps_its_id_and_its_gap_is_filled():
+    rng = np.random.default_rng(4)
+    tracked = tracker()
+    for t in range(80):
+        observations = [] if 30 <= t < 34 else [seen(t, -1.75, rng)]  # the detector misses it 4 frames running
+        window = (t * STEP + NEAR, t * STEP + FAR)
+        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
+                     passed_node=t * STEP)
+    (line,) = tracked.lines(0.003, 10, 0.5)
+    assert line.track_id == 0 and np.array_equal(line.nodes, np.arange(NEAR, 79 * STEP + FAR + 1))
