@@ -14,16 +14,16 @@ from lanelab.experiment.train import train
 
 # Under pytest the popen launcher would re-run pytest in the second process: spawn instead.
 DDP = ["trainer=ddp_cpu", "trainer.strategy.start_method=spawn"]
-# A short fit, then the test stage on the 12 training frames (more than the test split's 6).
-# No pictures: lanelab.lightning.pictures.log_pictures asks trainer.log_dir (a broadcast) on rank
-# zero alone when the logger takes no images, which hangs DDP (reported; remove once fixed).
+# A short fit (with its validation pictures, written by rank zero alone), then the test stage on
+# the 12 training frames (more than the test split's 6).
 COMMON = ["trainer.max_epochs=1", "trainer.limit_train_batches=2", "trainer.limit_val_batches=1",
-          "data.splits.test=train", "test=true", "model.pictures.num_frames=0"]  # fmt: skip
+          "data.splits.test=train", "test=true"]  # fmt: skip
 COUNTS = ("num_frames", "gt_lanes", "pred_lanes", "matched", "recall_tp", "precision_tp", "category_correct")
 
 
 def test_two_processes_match_one(tiny_store: Path, tmp_path: Path) -> None:
     ddp = train(load_train_config(tiny_overrides(tiny_store, tmp_path / "ddp", *DDP, *COMMON)))
+    assert len(list((tmp_path / "ddp" / "pictures").glob("val_pictures_*.png"))) == 2
     (checkpoint,) = (tmp_path / "ddp" / "checkpoints").glob("epoch*.ckpt")
     overrides = [*COMMON, "train=false", f"ckpt_path={checkpoint}"]
     single = train(load_train_config(tiny_overrides(tiny_store, tmp_path / "single", *overrides)))
