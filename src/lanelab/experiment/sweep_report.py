@@ -12,6 +12,11 @@ between jobs (the swept keys), and writes into the multirun folder (or ``--out``
 - ``sweep_report.csv``: the same numbers, unrounded (fractions in [0, 1], errors in metres);
 - ``sweep_f1.png``: F1 against the swept value, each point labelled with its F1 (matplotlib).
 
+A sweep of a paper's ablation (``sweep=contributions``, ``attention``, ``memory_length`` or one of
+Bi²Lane's, :mod:`lanelab.experiment.paper_tables`) also gets the paper's table in the report: its
+rows in the paper's order, our numbers beside the paper's, each the mean ± sample standard
+deviation over the jobs that ran the row (a multirun with ``seed=1,2,3`` gives three per row).
+
 When the jobs ran their evaluation (``evaluation.enabled=true``), ``metrics.json`` also holds
 the blind prior's scores (``blind_prior/<metric>``: the training split's mean lane layout,
 straight and flat, no image, scored on the evaluated split; :mod:`lanelab.evaluation.blind_prior`).
@@ -33,7 +38,9 @@ import argparse
 import csv
 import json
 import math
+import statistics
 import sys
+from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -42,6 +49,7 @@ import yaml
 
 from lanelab.atomic_file import atomic_output
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
+from lanelab.experiment.paper_tables import PAPER_TABLES, PaperRow
 from lanelab.metrics.openlane import DETECTION_SCORES
 from lanelab.metrics.scenarios import markdown_table
 
@@ -117,7 +125,7 @@ def swept_keys(jobs: list[Job]) -> list[str]:
 def table_rows(jobs: list[Job], keys: list[str]) -> tuple[list[dict[str, object]], list[str]]:
     """One row per job (swept values, then the metrics without their stage prefix) and the
     metric columns: test metrics where any job has them, else validation metrics."""
-    stage = "test/" if any(key.startswith("test/") for job in jobs for key in job.metrics) else "val/"
+    stage = _stage(jobs)
     names = sorted({key[len(stage):] for job in jobs for key in job.metrics if key.startswith(stage)})
     errors = [name for name in names if name.startswith(("x_error_", "z_error_"))]
     columns = [name for name in DETECTION_SCORES if name in names] + errors + (["vis_iou"] if "vis_iou" in names else [])
@@ -131,6 +139,57 @@ def table_rows(jobs: list[Job], keys: list[str]) -> tuple[list[dict[str, object]
     if len(keys) == 1 and all(_is_number(str(row[keys[0]])) for row in rows):
         rows.sort(key=lambda row: float(str(row[keys[0]])))
     return rows, columns
+
+
+def _stage(jobs: list[Job]) -> str:
+    """The metrics a report shows: test metrics where any job has them, else validation's."""
+    return "test/" if any(key.startswith("test/") for job in jobs for key in job.metrics) else "val/"
+
+
+def paper_section(jobs: list[Job]) -> str | None:
+    """The sweep as its paper's table (the jobs' common ``sweep`` override names it), in Markdown:
+    per row of the paper, in its order, the jobs that ran it, our numbers (mean ± sample std over
+    those jobs) and the paper's. Rows the sweep did not run show "–"; values the paper has no row
+    for come last. None when the sweep is no paper's."""
+    names = {job.overrides.get("sweep") for job in jobs}
+    table = PAPER_TABLES.get(names.pop()) if len(names) == 1 else None
+    if table is None:
+        return None
+    ran = defaultdict(list)
+    for job in jobs:
+        ran[str(job.overrides.get(table.key.lstrip("+~"), "")).lower()].append(job)  # as read_jobs keys them
+    known = {row.value for row in table.rows}
+    rows = [*table.rows, *(PaperRow(value, value, {}) for value in ran if value not in known)]
+    stage = _stage(jobs)
+    header = ["row", table.key, "jobs"] + [f"{_metric_label(name)} {who}" for name in table.columns for who in ("ours", "paper")]
+    lines = ["| " + " | ".join(header) + " |", "|---|---|" + "---:|" * (len(header) - 2)]
+    for row in rows:
+        cells = [row.label, row.value, str(len(ran[row.value]))]
+        for name in table.columns:
+            ours = [float(job.metrics[stage + name]) for job in ran[row.value] if job.metrics.get(stage + name) is not None]
+            cells += [_spread(ours, 100.0 if name == "f1" else 1.0), _paper_number(row.numbers.get(name), name)]
+        lines.append("| " + " | ".join(cells) + " |")
+    where = "test" if stage == "test/" else "validation"
+    return (f"## As in the paper: {table.title}\n\n" + "\n".join(lines) + "\n\n"
+            f"Ours: {where} metrics of this sweep's jobs, mean ± sample standard deviation over the jobs of a row "
+            "(seeds). The paper's: OpenLane, as published.\n")
+
+
+def _metric_label(name: str) -> str:
+    return "F1 (%)" if name == "f1" else f"{name[0]} err. {name[8:]} (m)"
+
+
+def _spread(values: list[float], scale: float) -> str:
+    """Mean ± sample std of values (times scale), one decimal for percent, three for metres."""
+    if not values:
+        return "–"
+    digits = 1 if scale == 100.0 else 3
+    mean = f"{scale * statistics.fmean(values):.{digits}f}"
+    return mean if len(values) == 1 else f"{mean} ± {scale * statistics.stdev(values):.{digits}f}"
+
+
+def _paper_number(value: float | None, name: str) -> str:
+    return "–" if value is None else f"{value:.1f}" if name == "f1" else f"{value:.3f}"
 
 
 def blind_prior_row(jobs: list[Job], keys: list[str], columns: list[str]) -> tuple[dict[str, object] | None, str]:
@@ -179,6 +238,9 @@ def write_report(multirun: Path, out: Path) -> list[Path]:
 
     markdown = f"# Sweep {multirun}\n\n" + markdown_table(rows + ([prior] if prior else []), [*keys, *columns])
     markdown += f"\n{note}\n"
+    paper = paper_section(jobs)
+    if paper is not None:
+        markdown += f"\n{paper}"
     with atomic_output(out / REPORT_MD) as tmp:
         tmp.write_text(markdown)
     with atomic_output(out / REPORT_CSV) as tmp, tmp.open("w", newline="") as f:
