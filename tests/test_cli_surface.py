@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from importlib.resources import files
 from pathlib import Path
 
 import pytest
@@ -53,12 +54,17 @@ def test_an_unknown_option_is_one_line_and_exit_2(tool: str, tmp_path: Path) -> 
     assert result.stderr == f"{tool}: bad option: typo: no such option (check its spelling in the tool's conf/*.yaml)\n"
 
 
+# The presets Hydra offers for a misspelt experiment, as the installed package holds them.
+EXPERIMENTS = sorted(path.name.removesuffix(".yaml") for path in (files("lanelab.conf") / "experiment").iterdir()
+                     if path.name.endswith(".yaml"))  # fmt: skip
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
         (["seed=abc"], "lanelab-train: bad option: seed: Value 'abc' of type 'str' could not be converted to Integer\n"),
         (["experiment=tinyy"], "lanelab-train: bad option: In 'train': Could not find 'experiment/tinyy' (choices: "
-                               "demo, openlane_ablation, openlane_latr_baseline, openlane_sparselanestp, tiny)\n"),
+                               f"{', '.join(EXPERIMENTS)})\n"),
     ],
 )
 def test_hydra_errors_are_one_line_and_exit_2(args: list[str], message: str, tmp_path: Path) -> None:

@@ -7,7 +7,9 @@ sense (:func:`validate`).
 
 from __future__ import annotations
 
+import calendar
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from typing import Optional, Sequence
 
 from omegaconf import MISSING
@@ -62,6 +64,7 @@ class SynthConfig:
     image_format: str = MISSING
     jpeg_quality: int = MISSING
     fps: float = MISSING
+    start_time: str = MISSING
     tf_rate_hz: float = MISSING
     label_every: int = MISSING
     labels_frame: str = MISSING
@@ -89,6 +92,7 @@ def validate(cfg: SynthConfig) -> SynthConfig:
     check_positive("label_every", cfg.label_every)
     check_positive("chunk_size", cfg.chunk_size)
     check_positive("workers", cfg.workers)
+    start_time_ns(cfg, 0)
     if not 1 <= cfg.jpeg_quality <= 100:
         raise ConfigError(f"jpeg_quality={cfg.jpeg_quality} must be in 1..100")
     _choice("encoding", cfg.encoding, ENCODINGS)
@@ -134,3 +138,17 @@ SCHEMA_NAME = "synth_schema"  # the first entry of conf/synth.yaml's defaults
 def load_synth_config(overrides: Sequence[str] = ()) -> SynthConfig:
     """Compose ``conf/synth.yaml`` with Hydra overrides and validate it, as ``lanelab-synth`` does."""
     return load_config("synth", SCHEMA_NAME, SynthConfig, validate, overrides)
+
+
+def start_time_ns(cfg: SynthConfig, log_index: int) -> int:
+    """Sensor time (ns since the Unix epoch) of log log_index's first frame: ``start_time``, and
+    an hour later for each log before it (drives recorded one after another). A time without a
+    zone is UTC. Raises ConfigError for a value that is no ISO 8601 date and time."""
+    try:
+        start = datetime.fromisoformat(cfg.start_time)
+    except (TypeError, ValueError):
+        raise ConfigError(f"start_time={cfg.start_time!r} is no ISO 8601 date and time (e.g. 2026-03-02T09:00:00Z)") from None
+    if start.tzinfo is None:
+        start = start.replace(tzinfo=timezone.utc)
+    seconds = calendar.timegm(start.utctimetuple())
+    return (seconds + 3600 * log_index) * 1_000_000_000 + start.microsecond * 1000

@@ -35,7 +35,7 @@ from mcap.writer import Writer as McapWriter
 import lanelab
 from data_ingest.contract import LANES2D_TYPE, LANES3D_TYPE, TAGS_TYPE
 from data_ingest.synth import lanelab_msgs
-from data_ingest.synth.config import SynthConfig
+from data_ingest.synth.config import SynthConfig, start_time_ns
 from data_ingest.synth.encoders import (
     CALIBRATION,
     COMPRESSED_IMAGE,
@@ -111,7 +111,7 @@ def write_drive_log(
     with atomic_output(path) as tmp, open(tmp, "wb") as stream:
         log = _Recorder(stream, cfg, encoder.profile, lag_seed=f"{cfg.seed}/{log_index}")
         log.add_metadata(METADATA_NAME, _metadata(drive, cfg, log_index))
-        num_frames = _write_drive(log, encoder, drive, cfg, progress)
+        num_frames = _write_drive(log, encoder, drive, cfg, progress, start_time_ns(cfg, log_index or 0))
         log.finish()
     return LogSummary(
         path=path,
@@ -200,18 +200,21 @@ def _write_drive(
     drive: DriveSource,
     cfg: SynthConfig,
     progress: Callable[[int], None] | None,
+    start_ns: int,
 ) -> int:
-    """Publish every message of ``drive``; return the number of camera frames."""
+    """Publish every message of ``drive``, its time 0 at sensor time start_ns; return the number
+    of camera frames."""
     topics, camera = cfg.topics, drive.camera
     _add_channels(log, encoder, cfg)
-    log.publish(topics.tf_static, 0, encoder.transforms(camera_mount(camera, cfg.frames.ego, stamp_ns=0)))
-    ego_poses = deque(ego_transforms(drive, cfg))
+    log.publish(topics.tf_static, start_ns, encoder.transforms(camera_mount(camera, cfg.frames.ego, stamp_ns=start_ns)))
+    ego_poses = deque(ego_transforms(drive, cfg, start_ns))
     num_frames = 0
     for frame in drive.frames():
-        while ego_poses and ego_poses[0].stamp_ns <= frame.timestamp_ns:
+        t = start_ns + frame.timestamp_ns
+        while ego_poses and ego_poses[0].stamp_ns <= t:
             log.publish(topics.tf, ego_poses[0].stamp_ns, encoder.transforms([ego_poses.popleft()]))
-        _publish_frame(log, encoder, frame, camera, cfg)
-        log.release(frame.timestamp_ns)
+        _publish_frame(log, encoder, frame, t, camera, cfg)
+        log.release(t)
         num_frames += 1
         if progress is not None:
             progress(1)
@@ -233,10 +236,11 @@ def _add_channels(log: _Recorder, encoder: MessageEncoder, cfg: SynthConfig) -> 
         log.add_channel(topic, schema, MessageEncoding.JSON)
 
 
-def _publish_frame(log: _Recorder, encoder: MessageEncoder, frame: SynthFrame, camera: CameraModel,
+def _publish_frame(log: _Recorder, encoder: MessageEncoder, frame: SynthFrame, t: int, camera: CameraModel,
                    cfg: SynthConfig) -> None:
-    """The image, calibration, 2D lanes, tags and (every label_every-th frame) 3D lanes of a frame."""
-    t, topics = frame.timestamp_ns, cfg.topics
+    """The image, calibration, 2D lanes, tags and (every label_every-th frame) 3D lanes of a frame,
+    stamped t (its sensor time)."""
+    topics = cfg.topics
     if cfg.image_format == "raw":
         log.publish(topics.image, t, encoder.raw_image(t, camera.frame_id, frame.image))
     else:
@@ -286,15 +290,16 @@ def camera_mount(camera: CameraModel, ego_frame: str, stamp_ns: int) -> list[Sta
     ]
 
 
-def ego_transforms(drive: DriveSource, cfg: SynthConfig) -> list[StampedTransform]:
-    """world <- ego at ``cfg.tf_rate_hz`` over [0, duration], both ends included."""
+def ego_transforms(drive: DriveSource, cfg: SynthConfig, start_ns: int) -> list[StampedTransform]:
+    """world <- ego at ``cfg.tf_rate_hz`` over the drive's [0, duration], both ends included,
+    stamped start_ns later (sensor time)."""
     count = int(drive.duration_ns * cfg.tf_rate_hz // 1e9) + 1
     stamps = [round(k * 1e9 / cfg.tf_rate_hz) for k in range(count)]
     poses = torch.as_tensor(np.stack([drive.pose_at(t) for t in stamps]), dtype=torch.float64)
     translations = poses[:, :3, 3].tolist()
     rotations = rotation_to_quaternion(poses[:, :3, :3]).tolist()  # one batched call, not one per stamp
     return [
-        StampedTransform(t, cfg.frames.world, cfg.frames.ego, tuple(translation), tuple(rotation))
+        StampedTransform(start_ns + t, cfg.frames.world, cfg.frames.ego, tuple(translation), tuple(rotation))
         for t, translation, rotation in zip(stamps, translations, rotations)
     ]
 

@@ -20,7 +20,7 @@ from mcap.writer import CompressionType, Writer
 
 from data_ingest.ingest.config import load_ingest_config
 from data_ingest.ingest.ingest import LogResult, ingest
-from data_ingest.synth.config import SynthConfig, load_synth_config
+from data_ingest.synth.config import SynthConfig, load_synth_config, start_time_ns
 from data_ingest.synth.drive import SyntheticDrive
 from data_ingest.synth.frame import CameraModel, SynthFrame
 
@@ -36,6 +36,9 @@ LOG_NAME = "synth_s0_000.mcap"
 
 def small_config(*overrides: str) -> SynthConfig:
     return load_synth_config([*SMALL, *overrides])
+
+
+START_NS = start_time_ns(small_config(), 0)  # the sensor time of a test log's drive time 0 (log_index 0)
 
 
 @dataclass(frozen=True)

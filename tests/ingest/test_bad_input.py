@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
-from ingest_helpers import chunk_spans, ingest_into, read_log, small_config, write_log
+from ingest_helpers import START_NS, chunk_spans, ingest_into, read_log, small_config, write_log
 from mcap.writer import Writer
 
 from data_ingest.synth.mcap_writer import write_drive_log
@@ -73,7 +73,7 @@ def test_truncated_log_keeps_every_complete_message_before_the_break(tmp_path, s
     assert result.status == "ingested" and 0 < result.num_frames < 20
     warning = result.warnings[0]
     assert "truncated or unreadable from byte" in warning and "recovered the" in warning and "bytes are lost" in warning
-    assert stamps(tmp_path / "store") == [k * 100_000_000 for k in range(result.num_frames)]
+    assert stamps(tmp_path / "store") == [START_NS + k * 100_000_000 for k in range(result.num_frames)]
 
 
 def test_log_cut_in_its_footer_loses_nothing(tmp_path, synth_log):
@@ -137,7 +137,7 @@ def test_out_of_order_stamps_are_ordered_and_repeated_ones_dropped(tmp_path, syn
     # 9 > 8 > 7 > 6 > 5 and 19 > 12: five steps back in file order
     assert f"{IMAGE}: 5 image stamps out of order (largest step back 0.700 s); frames are ordered by stamp" \
         in result.warnings
-    assert stamps(tmp_path / "store") == [k * 100_000_000 for k in range(20)]
+    assert stamps(tmp_path / "store") == [START_NS + k * 100_000_000 for k in range(20)]
 
 
 def test_empty_and_non_mcap_files(tmp_path):
@@ -183,7 +183,7 @@ def test_garbled_label_is_skipped_and_its_frame_kept_unlabeled(tmp_path, synth_l
 def test_nan_lane_points_drop_the_frame_with_a_reason(tmp_path, synth_log):
     messages, spoiled = [], False
     for m in read_log(synth_log("ros2")):
-        if m.topic == LANES and not spoiled:  # the label of the image at 0 s: one coordinate missing (NaN)
+        if m.topic == LANES and not spoiled:  # the label of the first image: one coordinate missing (NaN)
             label = json.loads(m.data)
             label["lanes"][0]["points"][3][1] = None
             m, spoiled = dataclasses.replace(m, data=json.dumps(label).encode()), True
@@ -191,4 +191,4 @@ def test_nan_lane_points_drop_the_frame_with_a_reason(tmp_path, synth_log):
     result = ingest_one(tmp_path, write_log(tmp_path / "nan_lane.mcap", messages))
     assert result.status == "ingested" and result.num_frames == 19
     assert result.dropped == {f"label on {LANES} has NaN or inf lane points or visibility": 1}
-    assert stamps(tmp_path / "store")[0] == 100_000_000
+    assert stamps(tmp_path / "store")[0] == START_NS + 100_000_000

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from ingest_helpers import ENCODINGS, ingest_into, read_log, write_log
+from ingest_helpers import ENCODINGS, START_NS, ingest_into, read_log, write_log
 
 from lanelab.geometry import T_BASE_LANE, T_LANE_BASE
 from lanelab.store import ClipStore
@@ -32,7 +32,7 @@ def test_store_equals_ground_truth(tmp_path, synth_log, drive, labels_frame):
     results = ingest_into(tmp_path, synth_log("ros2", f"labels_frame={labels_frame}"))
     assert [r.status for r in results] == ["ingested"] and not results[0].dropped
     frames = stored_frames(tmp_path)
-    assert [f.timestamp_ns for f in frames] == [g.timestamp_ns for g in drive.truth]
+    assert [f.timestamp_ns for f in frames] == [START_NS + g.timestamp_ns for g in drive.truth]
     for f, g in zip(frames, drive.truth):
         assert (f.width, f.height, f.image_encoding) == (160, 120, "jpeg")
         np.testing.assert_allclose(f.K, drive.camera.K, atol=TOL)
@@ -94,11 +94,11 @@ def test_clips_cut_at_max_length_and_target_rate(tmp_path, synth_log):
     clips = ClipStore(tmp_path / "short").clips
     assert [c.num_frames for c in clips] == [5, 5, 5, 5]
     assert all(c.last_timestamp_ns - c.first_timestamp_ns <= 0.5e9 for c in clips)
-    assert [c.first_timestamp_ns for c in clips] == [0, 500_000_000, 1_000_000_000, 1_500_000_000]
+    assert [c.first_timestamp_ns - START_NS for c in clips] == [0, 500_000_000, 1_000_000_000, 1_500_000_000]
 
     results = ingest_into(tmp_path / "slow", log, "clips.target_fps=5")
     frames = stored_frames(tmp_path / "slow")
-    assert [f.timestamp_ns for f in frames] == [k * 200_000_000 for k in range(10)]
+    assert [f.timestamp_ns - START_NS for f in frames] == [k * 200_000_000 for k in range(10)]
     assert results[0].dropped == {"left out for clips.target_fps=5.0": 10}
 
 
@@ -128,7 +128,7 @@ def test_a_label_stamped_apart_from_its_image_goes_through_the_world_frame(tmp_p
 def test_calibration_tolerance(tmp_path, synth_log):
     messages = read_log(synth_log("ros2"))  # calibrations of frames 0-9 kept (log times lag stamps by < 30 ms)
     log = write_log(tmp_path / "half_calibrated.mcap",
-                    [m for m in messages if m.topic != "/camera/front/camera_info" or m.log_time < 950_000_000])
+                    [m for m in messages if m.topic != "/camera/front/camera_info" or m.log_time < START_NS + 950_000_000])
     assert ingest_into(tmp_path / "any", log)[0].num_frames == 20  # null: the nearest at any time
     result = ingest_into(tmp_path / "near", log, "tolerances.calibration_s=0.05")[0]
     assert result.num_frames == 10

@@ -18,6 +18,7 @@ from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
+from data_ingest.synth.config import start_time_ns
 from data_ingest.synth.mcap_writer import MAX_LAG_NS, write_drive_log
 
 NS = 1_000_000_000
@@ -230,13 +231,15 @@ def test_stamps_are_sensor_times_and_log_times_lag_them(write, encoding):
             for stamp in stamps:
                 assert stamp <= record.log_time <= stamp + MAX_LAG_NS, topic
             assert record.publish_time == record.log_time
-    frame_times = [frame.timestamp_ns for frame in drive.frames()]
+    start = start_time_ns(cfg, 0)  # 2026-03-02T09:00:00Z: a date a user's tools show as one
+    assert start == 1_772_442_000 * NS
+    frame_times = [start + frame.timestamp_ns for frame in drive.frames()]
     for topic in ("/camera/front/image", "/camera/front/camera_info", "/camera/front/occluders", "/lanes2d", "/tags"):
         assert [stamp_ns(m) for _, m in messages[topic]] == frame_times, topic
     assert [stamp_ns(m) for _, m in messages["/lanes"]] == frame_times[:: cfg.label_every]
     tf_period = round(NS / cfg.tf_rate_hz)
     tf_stamps = [transforms(m)[0][0] for _, m in messages["/tf"]]
-    assert sorted(tf_stamps) == list(range(0, drive.duration_ns + 1, tf_period))
+    assert sorted(tf_stamps) == list(range(start, start + drive.duration_ns + 1, tf_period))
     assert tf_stamps != sorted(tf_stamps)  # the lags vary enough to reorder sensor times
     with open(summary.path, "rb") as f:  # but the file itself is in log-time order
         log_times = [record.log_time for _, _, record in make_reader(f).iter_messages(log_time_order=False)]
@@ -261,7 +264,7 @@ def test_encodings_carry_the_same_content(write):
     np.testing.assert_allclose(quaternion_matrix(q1), [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], atol=1e-15)
     for (stamp, parent, child, translation, rotation), in reference["tf"]:
         assert (parent, child) == ("odom", "base_link")
-        np.testing.assert_allclose(pose(translation, rotation), drive.pose_at(stamp), atol=1e-12)
+        np.testing.assert_allclose(pose(translation, rotation), drive.pose_at(stamp - start_time_ns(cfg, 0)), atol=1e-12)
     for calib in reference["calibration"]:
         assert (calib["frame_id"], calib["width"], calib["height"], calib["model"]) == (
             camera.frame_id, camera.width, camera.height, "plumb_bob")
@@ -293,7 +296,7 @@ def test_labels_round_trip_to_the_lane_frame(write, labels_frame):
     for label, frame in zip(labels, frames):
         assert label["frame_id"] == labels_frame
         # Independent of the writer's geometry code: inverse pose, then x_L = -y_b, y_L = x_b.
-        T_base_from_label = np.linalg.inv(drive.pose_at(stamp_ns(label))) if labels_frame == "odom" else np.eye(4)
+        T_base_from_label = np.linalg.inv(drive.pose_at(stamp_ns(label) - start_time_ns(cfg, 0))) if labels_frame == "odom" else np.eye(4)
         assert [(lane["track_id"], lane["category"]) for lane in label["lanes"]] == [
             (lane.track_id, lane.category) for lane in frame.lanes]
         for written, lane in zip(label["lanes"], frame.lanes):
