@@ -28,6 +28,7 @@ def run_synth(*args: str) -> subprocess.CompletedProcess:
         ("num_logs=many", "num_logs"),
         ("topics.lanes=", "topics.lanes is empty"),
         ("frames.ego=", "frames.ego is empty"),
+        ("start_time=yesterday", "start_time='yesterday' is no ISO 8601 date and time"),
     ],
 )
 def test_bad_option_fails_before_writing(tmp_path, option, message):
