@@ -1,6 +1,7 @@
 """lanelab-train composed through Hydra: every model x sampler runs, bad options fail by name."""
 
 import dataclasses
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -101,3 +102,20 @@ def test_a_store_that_cannot_feed_the_run_is_named_before_the_model_is_built(
     with pytest.raises(DataError, match=message), patch("lanelab.experiment.build.instantiate", wraps=instantiate) as built:
         train(cfg)
     assert [call.args[0] for call in built.call_args_list] == [cfg.data]  # the datamodule alone
+
+
+def test_a_clip_damaged_under_a_loader_worker_is_one_line_and_exit_1(tiny_store: Path, tmp_path: Path) -> None:
+    """The checksums pass the store at the start; a clip read by a DataLoader worker then fails its
+    page checksum: one line naming the file (PyTorch wraps a worker's error with its traceback)."""
+    store = tmp_path / "store"
+    shutil.copytree(tiny_store, store)
+    clip = sorted((store / "clips").glob("*.parquet"))[0]
+    data = bytearray(clip.read_bytes())
+    data[len(data) // 3] ^= 0xFF
+    clip.write_bytes(bytes(data))
+    command = [sys.executable, "-m", "lanelab.experiment.train", *tiny_overrides(store, tmp_path / "run"),
+               "data.num_workers=2", f"hydra.run.dir={tmp_path / 'run'}"]  # fmt: skip
+    result = subprocess.run(command, check=False, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 1
+    assert result.stderr.splitlines()[-1].startswith(f"lanelab-train: {clip}: damaged clip file (OSError: ")
+    assert "Traceback" not in result.stderr

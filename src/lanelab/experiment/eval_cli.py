@@ -33,6 +33,7 @@ from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.finite import NonFiniteError
 from lanelab.json_files import LaneFileError
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
+from lanelab.data.worker_errors import error_message
 from lanelab.store import ClipFileError, DataError, ManifestError
 
 register_schema(SCHEMA_NAME, EvalConfig)
@@ -114,7 +115,7 @@ def _run(cfg: DictConfig) -> None:
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(BAD_OPTION_STATUS)
     except (LaneFileError, NonFiniteError, ClipFileError) as err:
-        print(f"lanelab-eval: {err}", file=sys.stderr)
+        print(f"lanelab-eval: {error_message(err)}", file=sys.stderr)
         sys.exit(1)
 
 

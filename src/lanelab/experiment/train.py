@@ -44,6 +44,7 @@ from lanelab.experiment.build import build_run
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
 from lanelab.finite import NonFiniteError
 from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
+from lanelab.data.worker_errors import error_message
 from lanelab.store import ClipFileError, DataError, ManifestError
 
 register_schema(SCHEMA_NAME, TrainConfig)
@@ -142,8 +143,8 @@ def run_errors_exit(tool: str) -> Iterator[None]:
     except (ManifestError, DataError) as err:  # checked before anything is built
         print(f"{tool}: {err}", file=sys.stderr)
         sys.exit(BAD_OPTION_STATUS)
-    except (NonFiniteError, ClipFileError) as err:
-        print(f"{tool}: {err}", file=sys.stderr)
+    except (NonFiniteError, ClipFileError) as err:  # also from a loader worker, while training
+        print(f"{tool}: {error_message(err)}", file=sys.stderr)
         sys.exit(1)
 
 
