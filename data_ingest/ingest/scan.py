@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Callable
 
 from data_ingest.contract import CALIBRATION, IMAGE, LANES, TAGS, TRANSFORMS
-from data_ingest.ingest.config import IngestConfig
+from data_ingest.ingest.config import LogReading
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import ReadReport, read_messages
 from data_ingest.ingest.messages import (
@@ -60,7 +60,7 @@ class LogContents:
     bad_messages: Counter = field(default_factory=Counter)  # other messages skipped, by "topic: reason"
 
 
-def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
+def scan_log(path: Path, cfg: LogReading, spill: Spill, report: ReadReport,
              progress: Callable[[int], None] | None = None) -> LogContents:
     """Read every message of the configured topics of the log at ``path``."""
     topics = cfg.topics
@@ -110,7 +110,7 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
     return contents
 
 
-def _check_required(path: Path, cfg: IngestConfig, report: ReadReport) -> None:
+def _check_required(path: Path, cfg: LogReading, report: ReadReport) -> None:
     """Raise :class:`LogError` when the image, calibration or /tf topic has no message; list what the log has."""
     topics = cfg.topics
     missing = [topic for topic in (topics.image, topics.calibration, topics.tf) if report.topics[topic] == 0]

@@ -54,8 +54,8 @@ def draw_row(frame: PictureFrame, height: int, y_range: tuple[float, float]) -> 
     K = np.diag([scale, scale, 1.0]) @ frame.K
     top_view_size = (height, height // 2)
     return np.hstack([
-        _label(draw_lanes_on_image(image, frame.gt, K, frame.T_lane_cam), f"GT  {frame.title}"),
-        _label(draw_lanes_on_image(image, frame.pred, K, frame.T_lane_cam), "prediction"),
+        label_panel(draw_lanes_on_image(image, frame.gt, K, frame.T_lane_cam), f"GT  {frame.title}"),
+        label_panel(draw_lanes_on_image(image, frame.pred, K, frame.T_lane_cam), "prediction"),
         draw_top_view(frame.gt, top_view_size, TOP_VIEW_X_RANGE, y_range, title="GT"),
         draw_top_view(frame.pred, top_view_size, TOP_VIEW_X_RANGE, y_range, title="prediction"),
     ])
@@ -118,7 +118,7 @@ def _with_z(lane: np.ndarray) -> np.ndarray:
     return points
 
 
-def _label(panel: np.ndarray, text: str) -> np.ndarray:
+def label_panel(panel: np.ndarray, text: str) -> np.ndarray:
     """panel with text written in its top-left corner, shadowed so that it reads on any image."""
     for color, thickness in ((_SHADOW_COLOR, 3), (_TEXT_COLOR, 1)):
         cv2.putText(panel, text, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, color, thickness, cv2.LINE_AA)
