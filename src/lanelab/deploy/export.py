@@ -76,7 +76,7 @@ def export(step: ExplicitStateStep, fmt: str, out: str | Path, example: tuple[Te
                 torch.export.save(program, handle, extra_files={f"{METADATA_KEY}.json": json.dumps(metadata)})
             opset = None
         else:
-            opset = _export_onnx(step, example, tmp, metadata)
+            opset = write_onnx(step, example, tmp, metadata)
         if check_with is not None:
             check_with(tmp)
     return Exported(Path(out), fmt, opset, metadata)
@@ -127,7 +127,9 @@ def metadata_of(trained: TrainedDetector) -> dict[str, Any]:
                    "channels": net.embed_dim},
     }
 
-def _export_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path, metadata: dict[str, Any]) -> int:
+def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path, metadata: dict[str, Any]) -> int:
+    """Write ``step`` traced with ``example`` as an ONNX file at ``path`` with ``metadata``
+    under the ``lanelab`` key; the opset the exporter chose."""
     try:
         import onnx
     except ImportError:
