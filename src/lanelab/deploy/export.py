@@ -24,6 +24,7 @@ import contextlib
 import io
 import json
 import logging
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,8 +135,11 @@ def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path,
         import onnx
     except ImportError:
         raise ExportError("format=onnx needs the onnx and onnxscript packages: pip install 'lanelab[export]'") from None
-    # The exporter reports its progress on stdout and its graph optimiser logs every rewrite.
-    with contextlib.redirect_stdout(io.StringIO()), _quiet("onnxscript", "onnx_ir"):
+    # The exporter reports its progress on stdout, warns of torchvision ops it cannot offer, and its
+    # graph optimiser logs every rewrite; a failure raises with all that matters.
+    with contextlib.redirect_stdout(io.StringIO()), _quiet("torch.onnx", "onnxscript", "onnx_ir"), \
+            warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
         torch.onnx.export(step, example, str(path), dynamo=True, input_names=list(ALL_INPUTS),
                           output_names=list(ALL_OUTPUTS), external_data=False, verbose=False)  # fmt: skip
     model = onnx.load(str(path))
@@ -147,10 +151,10 @@ def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path,
 
 @contextlib.contextmanager
 def _quiet(*loggers: str) -> Iterator[None]:
-    """The named loggers at WARNING and above for the time of the block."""
+    """The named loggers at ERROR and above for the time of the block."""
     levels = {name: logging.getLogger(name).level for name in loggers}
     for name in loggers:
-        logging.getLogger(name).setLevel(logging.WARNING)
+        logging.getLogger(name).setLevel(logging.ERROR)
     try:
         yield
     finally:

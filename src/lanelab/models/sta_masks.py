@@ -28,6 +28,7 @@ import torch
 from torch import Tensor
 
 from lanelab.geometry import sampling_matrix
+from lanelab.models.ranking import smallest
 
 
 @dataclass
@@ -79,7 +80,7 @@ def parallel_neighbours(points: Tensor, num_neighbors: int = 2) -> Tensor:
     to the normal plane of query (i, m), nearest first (j = i included; callers mask it)."""
     offsets = normal_plane_offsets(points, points).abs_()
     k = min(num_neighbors, points.shape[-2])
-    return offsets.topk(k, dim=-1, largest=False).indices
+    return smallest(offsets, k)[1]
 
 
 def temporal_neighbours(
@@ -100,7 +101,7 @@ def temporal_neighbours(
     distance = offsets.square().sum(-1).sqrt()  # (B, N·M, K)
     distance = distance.masked_fill_(~memory_valid[:, None, :], torch.inf)
     k = min(m_tca, memory_points.shape[1])
-    nearest, index = distance.topk(k, dim=-1, largest=False)
+    nearest, index = smallest(distance, k)
     return index.view(B, N, M, k), nearest.isfinite().view(B, N, M, k)
 
 
