@@ -10,8 +10,8 @@ its first and middle frame) streams through:
 - ``eager step (sparse STA)``: ``SparseLaneSTP.step``, as lanelab-predict runs it;
 - ``eager step (dense STA)``: the same with the dense attention the exported graph holds;
 - ``torch.export``: the ExportedProgram's module (``ExplicitStateStep``, state carried as tensors);
-- ``onnxruntime``: the ONNX file of lanelab-export on onnxruntime's CPU provider (its default
-  threads; the CUDA provider where onnxruntime has it and ``--device cuda``).
+- ``onnxruntime``: the ONNX file of lanelab-export on onnxruntime's CPU provider with as many
+  threads as torch (the CUDA provider where onnxruntime has it and ``--device cuda``).
 
 Variants run interleaved frame by frame, so that load from other processes affects them alike;
 figures are medians over the timed frames after ``--warmup`` frames. The table also gives the
@@ -80,7 +80,9 @@ def runners(config: dict, device: torch.device, folder: Path) -> tuple[dict[str,
     providers = ["CPUExecutionProvider"]
     if device.type == "cuda" and "CUDAExecutionProvider" in onnxruntime.get_available_providers():
         providers.insert(0, "CUDAExecutionProvider")
-    session = onnxruntime.InferenceSession(str(folder / "model.onnx"), providers=providers)
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = torch.get_num_threads()  # as many threads as torch gets
+    session = onnxruntime.InferenceSession(str(folder / "model.onnx"), options, providers=providers)
 
     def ort(*inputs: torch.Tensor) -> list[torch.Tensor]:
         outputs = session.run(None, {name: t.cpu().numpy() for name, t in zip(ALL_INPUTS, inputs)})

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import torch
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
@@ -27,8 +28,6 @@ from lanelab.store import ClipStore
 from lanelab.viz import CATEGORY_COLORS
 from log_predict.cli import run
 from log_predict.config import load_predict_config
-
-import torch
 
 ROOT = Path(__file__).resolve().parents[2]
 IMAGE, CALIBRATION = "/camera/front/image", "/camera/front/camera_info"

@@ -10,22 +10,19 @@ valid), emptied where ``reset`` is True, read and pushed as ``step`` does, and h
 state of an empty memory (a first frame must also set ``reset``, as every clip start does).
 
 Inputs and outputs (B streams, N lines, M control points, K categories, S lane samples at the
-y grid ``y``; T memory frames of N_mem lines, C channels):
+y grid ``y``; T memory frames of N_mem lines of C channels):
 
-=============  ========================  =======  ==============================================
-name           shape                     dtype    meaning
-=============  ========================  =======  ==============================================
-images         (B, 3, H, W)              float32  normalised RGB, as the data pipeline makes it
-K              (B, 3, 3)                 float32  intrinsics of the images as given
-T_lane_cam     (B, 4, 4)                 float32  camera extrinsic
-T_world_lane   (B, 4, 4)                 float64  ego pose
-reset          (B,)                      bool     a clip starts: empty the memory first
-points         (B, N, M, 4)              float32  the last layer's control points (x, y, z, v)
-logits         (B, N, K + 1)             float32  class logits, background last
-lanes          (B, N, S, 4)              float32  the lines decoded at y: (x, y, z, v)
-state (x2)     embeddings (B, T, N_mem, M, C) float32, points (B, T, N_mem, M, 4) float32,
-               poses (B, T, 4, 4) float64, valid (B, T) bool; in and out alike
-=============  ========================  =======  ==============================================
+- images (B, 3, H, W) float32: normalised RGB, as the data pipeline makes it;
+- K (B, 3, 3) float32: intrinsics of the images as given; T_lane_cam (B, 4, 4) float32;
+- T_world_lane (B, 4, 4) float64: the ego pose;
+- reset (B,) bool: a clip starts, empty the memory first;
+- points (B, N, M, 4) float32: the last layer's control points (x, y, z, v), metres;
+- logits (B, N, K + 1) float32: class logits, background last;
+- lanes (B, N, S, 4) float32: the lines decoded at ``y``, (x, y, z, v);
+- the state, in and out alike (:class:`~lanelab.models.memory_queue.QueueState`, slot 0 the
+  newest frame): embeddings (B, T, N_mem, M, C) float32, points (B, T, N_mem, M, 4) float32
+  (each slot in its own frame's lane frame), poses (B, T, 4, 4) float64 (T_world_lane of each
+  slot's frame), valid (B, T) bool.
 
 The spatio-temporal attention runs its dense implementation, the sparse one's reference: the
 same keys and the same result (:mod:`lanelab.models.spatio_temporal_attention`); the sparse
