@@ -30,6 +30,9 @@ from torch import Tensor
 from lanelab.geometry import sampling_matrix
 from lanelab.models.ranking import smallest
 
+# Metres: distances are compared in steps of this; keys in the same step are taken by index (models.ranking).
+DISTANCE_RESOLUTION = 1e-3
+
 
 @dataclass
 class Neighbours:
@@ -80,7 +83,7 @@ def parallel_neighbours(points: Tensor, num_neighbors: int = 2) -> Tensor:
     to the normal plane of query (i, m), nearest first (j = i included; callers mask it)."""
     offsets = normal_plane_offsets(points, points).abs_()
     k = min(num_neighbors, points.shape[-2])
-    return smallest(offsets, k)[1]
+    return smallest(offsets, k, DISTANCE_RESOLUTION)[1]
 
 
 def temporal_neighbours(
@@ -101,7 +104,7 @@ def temporal_neighbours(
     distance = offsets.square().sum(-1).sqrt()  # (B, N·M, K)
     distance = distance.masked_fill_(~memory_valid[:, None, :], torch.inf)
     k = min(m_tca, memory_points.shape[1])
-    nearest, index = smallest(distance, k)
+    nearest, index = smallest(distance, k, DISTANCE_RESOLUTION)
     return index.view(B, N, M, k), nearest.isfinite().view(B, N, M, k)
 
 
