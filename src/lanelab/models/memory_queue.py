@@ -25,10 +25,6 @@ import torch
 from torch import Tensor
 
 from lanelab.geometry import compose, invert, transform_points
-from lanelab.models.ranking import largest
-
-# Scores are compared in steps of this; lines in the same step are kept by index (models.ranking).
-SCORE_RESOLUTION = 1e-4
 
 
 @dataclass
@@ -107,7 +103,7 @@ class MemoryQueue:
             self._allocate(embeddings, control_points, T_world_lane)
         elif self._valid.shape[0] != B:
             raise ValueError("batch size changed without a reset of every stream")
-        top = largest(scores.detach(), self.num_lines, SCORE_RESOLUTION)[1][:, :, None, None]  # (B, N_mem, 1, 1)
+        top = scores.detach().topk(self.num_lines, dim=1).indices[:, :, None, None]  # (B, N_mem, 1, 1)
         embeddings = embeddings.detach().gather(1, top.expand(-1, -1, *embeddings.shape[2:]))
         control_points = control_points.detach().gather(1, top.expand(-1, -1, *control_points.shape[2:]))
         self._embeddings = _enqueue(self._embeddings, embeddings)

@@ -28,10 +28,6 @@ import torch
 from torch import Tensor
 
 from lanelab.geometry import sampling_matrix
-from lanelab.models.ranking import smallest
-
-# Metres: distances are compared in steps of this; keys in the same step are taken by index (models.ranking).
-DISTANCE_RESOLUTION = 1e-3
 
 
 @dataclass
@@ -83,7 +79,7 @@ def parallel_neighbours(points: Tensor, num_neighbors: int = 2) -> Tensor:
     to the normal plane of query (i, m), nearest first (j = i included; callers mask it)."""
     offsets = normal_plane_offsets(points, points).abs_()
     k = min(num_neighbors, points.shape[-2])
-    return smallest(offsets, k, DISTANCE_RESOLUTION)[1]
+    return offsets.topk(k, dim=-1, largest=False).indices
 
 
 def temporal_neighbours(
@@ -104,7 +100,7 @@ def temporal_neighbours(
     distance = offsets.square().sum(-1).sqrt()  # (B, N·M, K)
     distance = distance.masked_fill_(~memory_valid[:, None, :], torch.inf)
     k = min(m_tca, memory_points.shape[1])
-    nearest, index = smallest(distance, k, DISTANCE_RESOLUTION)
+    nearest, index = distance.topk(k, dim=-1, largest=False)
     return index.view(B, N, M, k), nearest.isfinite().view(B, N, M, k)
 
 
