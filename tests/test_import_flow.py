@@ -15,8 +15,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # package (a folder) -> the lanelab packages it must never import
 FORBIDDEN = {
+    "src/lanelab": ("data_ingest", "log_predict"),  # lanelab never imports the ingestor, nor lanelab-predict
     "data_ingest": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
-                    "lanelab.metrics", "lanelab.evaluation"),
+                    "lanelab.metrics", "lanelab.evaluation", "lanelab.deploy", "log_predict"),
     "src/lanelab/store": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
                           "lanelab.metrics", "lanelab.evaluation", "data_ingest"),
     "src/lanelab/openlane": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
@@ -24,7 +25,7 @@ FORBIDDEN = {
     "src/lanelab/data": ("lanelab.models", "lanelab.lightning", "lanelab.experiment", "lanelab.metrics",
                          "lanelab.evaluation", "data_ingest"),
     "src/lanelab/models": ("lanelab.data", "lanelab.lightning", "lanelab.experiment", "lanelab.metrics",
-                           "lanelab.evaluation", "data_ingest", "lightning", "hydra", "omegaconf"),
+                           "lanelab.evaluation", "lanelab.deploy", "data_ingest", "lightning", "hydra", "omegaconf"),
     "src/lanelab/metrics": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
                             "lanelab.evaluation", "data_ingest"),
     "src/lanelab/evaluation": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",

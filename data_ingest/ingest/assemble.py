@@ -26,7 +26,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from data_ingest.ingest.config import IngestConfig
+from data_ingest.ingest.config import LogReading
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.messages import LanesMsg
 from data_ingest.ingest.scan import ImageRef, LogContents
@@ -54,7 +54,7 @@ class Assembled:
     notes: list[str] = field(default_factory=list)  # label and TF problems, one line each
 
 
-def assemble(path: Path, contents: LogContents, cfg: IngestConfig) -> Assembled:
+def assemble(path: Path, contents: LogContents, cfg: LogReading) -> Assembled:
     """Complete every image of ``contents`` into a frame, or drop it with a reason."""
     out = Assembled(dropped=Counter(contents.dropped))
     images = _in_stamp_order(contents.images, cfg.topics.image, out)
@@ -107,7 +107,7 @@ def _in_stamp_order(images: Sequence[ImageRef], topic: str, out: Assembled) -> l
     return unique
 
 
-def _check_tree(path: Path, tf: TfTree, cfg: IngestConfig, camera_frames: set[str]) -> None:
+def _check_tree(path: Path, tf: TfTree, cfg: LogReading, camera_frames: set[str]) -> None:
     """Raise LogError unless the TF tree connects world <- ego <- every camera frame."""
     world, ego = cfg.frames.world, cfg.frames.ego
     for a, b, what in [(world, ego, "world and ego"),
@@ -140,7 +140,7 @@ class _Keep:
             self.mask &= ~which
 
 
-def _calibrations(contents: LogContents, images: Sequence[ImageRef], stamps: np.ndarray, cfg: IngestConfig,
+def _calibrations(contents: LogContents, images: Sequence[ImageRef], stamps: np.ndarray, cfg: LogReading,
                   keep: _Keep) -> np.ndarray:
     """K (N, 3, 3) of each image from the nearest calibration; drops images without a usable one."""
     topic, tolerance = cfg.topics.calibration, cfg.tolerances.calibration_s
@@ -180,7 +180,7 @@ def _lookup(tf: TfTree, target: str, source: str, stamps: np.ndarray, keep: _Kee
     return T
 
 
-def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray, cfg: IngestConfig,
+def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray, cfg: LogReading,
             notes: list[str]) -> tuple[dict[int, list[Lane]], np.ndarray]:
     """Lanes of the frames (by index into ``stamps``) that a label matches, and the frames whose
     label holds NaN or inf points or visibility (int array, to drop); other problems go to ``notes``."""
@@ -245,7 +245,7 @@ def _lanes_in_lane_frame(label: LanesMsg, T_lane_label: np.ndarray) -> list[Lane
             if n]
 
 
-def _tags(contents: LogContents, stamps: np.ndarray, cfg: IngestConfig) -> list[dict[str, str]]:
+def _tags(contents: LogContents, stamps: np.ndarray, cfg: LogReading) -> list[dict[str, str]]:
     """Per frame, the tags of the last tags message stamped at most tolerances.tags_s after it ({} if none)."""
     if not contents.tags:
         return [{} for _ in stamps]

@@ -9,7 +9,7 @@ sense (:func:`validate`). Topic and frame names are the drive-log contract's
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Any, Optional, Sequence
+from typing import Any, Optional, Protocol, Sequence
 
 from omegaconf import MISSING
 
@@ -61,6 +61,16 @@ class IngestConfig:
 AUTOLABEL_OPTION = "autolabel"  # the manifest's options key of a store whose labels were auto-labeled
 
 
+class LogReading(Protocol):
+    """The options that say how a drive log is read into frames, those of lanelab-ingest and
+    lanelab-predict alike: topic and frame names, matching tolerances, where clips are cut."""
+
+    topics: TopicsConfig
+    frames: FramesConfig
+    tolerances: TolerancesConfig
+    clips: ClipsConfig
+
+
 def store_options(cfg: IngestConfig) -> dict[str, Any]:
     """The options that shape a store's contents (recorded in its manifest); not input, output, workers, verify.
 
@@ -87,6 +97,16 @@ def validate(cfg: IngestConfig) -> IngestConfig:
     if not cfg.output:
         raise ConfigError("output is empty: give the clip store directory")
     check_positive("workers", cfg.workers)
+    check_reading(cfg)
+    check_choice("split.by", cfg.split.by, SPLIT_BY)
+    ratios = {name: getattr(cfg.split, name) for name in ("train", "val", "test")}
+    if any(value < 0 for value in ratios.values()) or abs(sum(ratios.values()) - 1) > 1e-6:
+        raise ConfigError(f"split ratios {ratios} must be >= 0 and sum to 1")
+    return cfg
+
+
+def check_reading(cfg: LogReading) -> None:
+    """Check the options of :class:`LogReading`; raise :class:`ConfigError` naming the first bad key."""
     for key in ("label_s", "calibration_s", "tags_s"):
         value = getattr(cfg.tolerances, key)
         if value is not None and value < 0:
@@ -97,10 +117,6 @@ def validate(cfg: IngestConfig) -> IngestConfig:
     if cfg.clips.target_fps is not None and 1 / cfg.clips.target_fps >= cfg.clips.gap_s:
         raise ConfigError(f"clips.target_fps={cfg.clips.target_fps} keeps frames further apart than "
                           f"clips.gap_s={cfg.clips.gap_s}: every frame would be its own clip")
-    check_choice("split.by", cfg.split.by, SPLIT_BY)
-    ratios = {name: getattr(cfg.split, name) for name in ("train", "val", "test")}
-    if any(value < 0 for value in ratios.values()) or abs(sum(ratios.values()) - 1) > 1e-6:
-        raise ConfigError(f"split ratios {ratios} must be >= 0 and sum to 1")
     check_names(cfg.topics, cfg.frames)
     validate_autolabel(cfg.autolabel)
     return cfg

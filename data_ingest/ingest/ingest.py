@@ -36,12 +36,13 @@ from tqdm import tqdm
 
 from data_ingest.autolabel.log import autolabel_log
 from data_ingest.autolabel.quality import Quality, report_text, write_quality
-from data_ingest.ingest.assemble import PlannedFrame, assemble
-from data_ingest.ingest.clips import clips_for_train, cut, draw_split, log_name, split_key, subsample
+from data_ingest.ingest.assemble import PlannedFrame
+from data_ingest.ingest.clips import clips_for_train, cut, draw_split, log_name, split_key
 from data_ingest.ingest.config import IngestConfig, store_options
 from data_ingest.ingest.errors import IngestInterrupted, LogError
+from data_ingest.ingest.frames import read_frames
 from data_ingest.ingest.mcap_reader import ReadReport
-from data_ingest.ingest.scan import scan_log
+from data_ingest.ingest.scan import LogContents
 from data_ingest.ingest.spill import Spill
 from data_ingest.ingest.summary import print_summary
 from data_ingest.ingest.workers import in_workers
@@ -144,22 +145,16 @@ def _ingest(path: Path, cfg: IngestConfig, report: ReadReport, result: LogResult
             progress: Callable[[int], None]) -> None:
     Path(cfg.output).mkdir(parents=True, exist_ok=True)
     with Spill(cfg.output) as spill:
-        contents = scan_log(path, cfg, spill, report, progress)
-        result.warnings += [f"{n} message(s) skipped on {reason}"
-                            for reason, n in sorted(contents.bad_messages.items())]
-        assembled = assemble(path, contents, cfg)
-        result.dropped, result.warnings = assembled.dropped, result.warnings + assembled.notes
-        frames = assembled.frames
-        if cfg.autolabel.enabled and frames:
+        def autolabel(frames: list[PlannedFrame], contents: LogContents, warnings: list[str]) -> list[PlannedFrame]:
             frames, result.quality, result.autolabeled = autolabel_log(path, source_name(path), frames, contents,
-                                                                       spill, cfg, result.warnings)
-        keep = subsample(np.array([f.record.timestamp_ns for f in frames], dtype=np.int64), cfg.clips.target_fps)
-        if not keep.all():
-            result.dropped[f"left out for clips.target_fps={cfg.clips.target_fps}"] += int((~keep).sum())
-            frames = [frame for frame, kept in zip(frames, keep) if kept]
+                                                                       spill, cfg, warnings)
+            return frames
+
+        log = read_frames(path, cfg, spill, report, progress, autolabel if cfg.autolabel.enabled else None)
+        result.dropped, result.warnings = log.dropped, result.warnings + log.warnings
+        frames = log.frames
         if not frames:
-            reasons = "; ".join(f"{n} x {reason}" for reason, n in result.dropped.most_common())
-            raise LogError(f"{path}: no usable frame" + (f" ({reasons})" if reasons else " (no images)"))
+            raise log.unusable(path)
         _write_clips(path, frames, spill, sha256.result(), cfg, result.clips)
         result.num_frames = len(frames)
         result.labeled = sum(frame.record.labeled for frame in frames)

@@ -28,11 +28,14 @@ from data_ingest.ingest.errors import LogError
 
 @dataclass(frozen=True)
 class RawMessage:
-    """A message of a wanted topic, still serialized."""
+    """A message of a wanted topic, still serialized, with its record's times (ns) and sequence."""
 
     channel: Channel
     schema: Optional[Schema]  # None when the channel has no schema (schema id 0)
     data: bytes
+    log_time: int
+    publish_time: int
+    sequence: int
 
     @property
     def topic(self) -> str:
@@ -134,7 +137,8 @@ def read_messages(
                     messages += 1
                     report.topics[channel.topic] += 1
                     if channel.topic in wanted:
-                        yield RawMessage(channel, schemas.get(channel.schema_id), item.data)
+                        yield RawMessage(channel, schemas.get(channel.schema_id), item.data, item.log_time,
+                                         item.publish_time, item.sequence)
                 elif isinstance(item, Schema):
                     schemas[item.id] = item
                 elif isinstance(item, Channel):

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Callable
 
 from data_ingest.contract import CALIBRATION, IMAGE, LANES, LANES2D, OCCLUDERS, TAGS, TRANSFORMS
-from data_ingest.ingest.config import IngestConfig
+from data_ingest.ingest.config import LogReading
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import ReadReport, read_messages
 from data_ingest.ingest.messages import (
@@ -64,13 +64,14 @@ class LogContents:
     bad_messages: Counter = field(default_factory=Counter)  # other messages skipped, by "topic: reason"
 
 
-def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
-             progress: Callable[[int], None] | None = None) -> LogContents:
-    """Read every message of the configured topics of the log at ``path``."""
+def scan_log(path: Path, cfg: LogReading, spill: Spill, report: ReadReport,
+             progress: Callable[[int], None] | None = None, detections: bool = False) -> LogContents:
+    """Read every message of the configured topics of the log at ``path``; with detections also
+    its 2D lane detections and occluder masks (what auto-labeling reads)."""
     topics = cfg.topics
     roles = {topics.image: IMAGE, topics.calibration: CALIBRATION, topics.tf: TRANSFORMS,
              topics.tf_static: TRANSFORMS, topics.lanes: LANES, topics.tags: TAGS}
-    if cfg.autolabel.enabled:
+    if detections:
         roles[topics.lanes2d], roles[topics.occluders] = LANES2D, OCCLUDERS
     contents, decoder = LogContents(), Decoder()
     checked: set[int] = set()
@@ -110,7 +111,7 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
                     contents.dropped[f"image message unusable: {err}"] += 1
                 else:
                     contents.bad_messages[f"{raw.topic}: {err}"] += 1
-        _check_required(path, cfg, report)
+        _check_required(path, cfg, report, detections)
         parsed.append(label_parser.submit(parse_lanes3d, label_batch))
         for label in (label for future in parsed for label in future.result()):
             if isinstance(label, MessageError):
@@ -120,12 +121,12 @@ def scan_log(path: Path, cfg: IngestConfig, spill: Spill, report: ReadReport,
     return contents
 
 
-def _check_required(path: Path, cfg: IngestConfig, report: ReadReport) -> None:
+def _check_required(path: Path, cfg: LogReading, report: ReadReport, detections: bool) -> None:
     """Raise :class:`LogError` when the image, calibration or /tf topic has no message, or
-    the 2D detections when auto-labeling; list what the log has."""
+    the 2D detections when they are read (auto-labeling); list what the log has."""
     topics = cfg.topics
     missing = [topic for topic in (topics.image, topics.calibration, topics.tf) if report.topics[topic] == 0]
-    no_detections = cfg.autolabel.enabled and report.topics[topics.lanes2d] == 0
+    no_detections = detections and report.topics[topics.lanes2d] == 0
     if not missing and not no_detections:
         return
     if not report.topics:

@@ -86,6 +86,18 @@ class MessageEncoder(Protocol):
     def calibration(self, t_ns: int, camera: CameraModel) -> bytes: ...
 
 
+def protobuf_schema(message_type: type[Message]) -> Schema:
+    """The schema record of a protobuf message type: its file descriptor set."""
+    descriptor_set = build_file_descriptor_set(message_type)
+    return Schema(message_type.DESCRIPTOR.full_name, SchemaEncoding.Protobuf, descriptor_set.SerializeToString())
+
+
+def foxglove_json_schema(message_type: type[Message]) -> Schema:
+    """The schema record of a Foxglove message type in Foxglove's JSON encoding."""
+    descriptor = message_type.DESCRIPTOR
+    return Schema(descriptor.full_name, SchemaEncoding.JSONSchema, dumps(json_schema(descriptor)))
+
+
 def calibration_arrays(camera: CameraModel) -> dict[str, list[float]]:
     """An undistorted pinhole camera as CameraInfo arrays: D (5,), K (9,), R (9,), P (12,), row-major."""
     K = np.asarray(camera.K, dtype=np.float64)
@@ -197,9 +209,7 @@ class FoxgloveProtobufEncoder:
     }
 
     def schema(self, role: str) -> Schema:
-        message_type = self._TYPES[role]
-        descriptor_set = build_file_descriptor_set(message_type)
-        return Schema(message_type.DESCRIPTOR.full_name, SchemaEncoding.Protobuf, descriptor_set.SerializeToString())
+        return protobuf_schema(self._TYPES[role])
 
     def _serialize(self, message: Message) -> bytes:
         return message.SerializeToString()
@@ -263,8 +273,7 @@ class FoxgloveJsonEncoder(FoxgloveProtobufEncoder):
     message_encoding = MessageEncoding.JSON
 
     def schema(self, role: str) -> Schema:
-        descriptor = self._TYPES[role].DESCRIPTOR
-        return Schema(descriptor.full_name, SchemaEncoding.JSONSchema, dumps(json_schema(descriptor)))
+        return foxglove_json_schema(self._TYPES[role])
 
     def _serialize(self, message: Message) -> bytes:
         return dumps(to_json(message))

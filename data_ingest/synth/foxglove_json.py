@@ -1,7 +1,7 @@
 """Foxglove's JSON encoding of its schemas, derived from the protobuf definitions.
 
 Foxglove's ``jsonschema`` types have the fields of its protobuf types under the same names,
-with times as ``{"sec", "nsec"}`` objects and bytes as base64 strings. :func:`json_schema`
+with times and durations as ``{"sec", "nsec"}`` objects and bytes as base64 strings. :func:`json_schema`
 and :func:`to_json` walk the protobuf descriptor, so a JSON channel carries exactly what
 the protobuf one would. The lanelab JSON messages follow the same conventions.
 """
@@ -15,7 +15,7 @@ from typing import Any, Mapping
 from google.protobuf.descriptor import Descriptor, FieldDescriptor
 from google.protobuf.message import Message
 
-_TIMESTAMP = "google.protobuf.Timestamp"
+_TIMES = ("google.protobuf.Timestamp", "google.protobuf.Duration")  # both {"sec", "nsec"} in JSON
 
 TIME_SCHEMA = {
     "type": "object",
@@ -44,7 +44,7 @@ _SCALAR_SCHEMAS = {
 
 def json_schema(descriptor: Descriptor) -> dict[str, Any]:
     """The JSON schema of a Foxglove message type, e.g. ``CompressedImage.DESCRIPTOR``."""
-    if descriptor.full_name == _TIMESTAMP:
+    if descriptor.full_name in _TIMES:
         return dict(TIME_SCHEMA)
     return {
         "title": descriptor.full_name,
@@ -60,7 +60,7 @@ def _field_schema(field: FieldDescriptor) -> dict[str, Any]:
 
 def to_json(message: Message) -> dict[str, Any]:
     """A Foxglove protobuf message as the JSON object of its ``jsonschema`` twin."""
-    if message.DESCRIPTOR.full_name == _TIMESTAMP:
+    if message.DESCRIPTOR.full_name in _TIMES:
         return {"sec": message.seconds, "nsec": message.nanos}
     return {field.name: _field_value(field, getattr(message, field.name)) for field in message.DESCRIPTOR.fields}
 
@@ -77,6 +77,35 @@ def _single_value(field: FieldDescriptor, value: Any) -> Any:
     if field.type == FieldDescriptor.TYPE_BYTES:
         return base64.b64encode(value).decode("ascii")
     return value
+
+
+def from_json(value: Mapping[str, Any], message_type: type[Message]) -> Message:
+    """A message in Foxglove's JSON encoding (what :func:`to_json` makes) as its protobuf type."""
+    message = message_type()
+    _fill(message, value)
+    return message
+
+
+def _fill(message: Message, value: Mapping[str, Any]) -> None:
+    if message.DESCRIPTOR.full_name in _TIMES:
+        message.seconds, message.nanos = int(value["sec"]), int(value["nsec"])
+        return
+    for field in message.DESCRIPTOR.fields:
+        if field.name not in value:
+            continue
+        item, target = value[field.name], getattr(message, field.name)
+        if field.message_type:
+            for entry in item if field.is_repeated else ():
+                _fill(target.add(), entry)
+            if not field.is_repeated:
+                _fill(target, item)
+            continue
+        if field.type == FieldDescriptor.TYPE_BYTES:
+            item = [base64.b64decode(v) for v in item] if field.is_repeated else base64.b64decode(item)
+        if field.is_repeated:
+            target.extend(item)
+        else:
+            setattr(message, field.name, item)
 
 
 def dumps(message: Mapping[str, Any]) -> bytes:

@@ -35,6 +35,7 @@ SCHEMAS: dict[str, dict[str, Any]] = {
                         "category": {"type": "integer", "description": "OpenLane category id"},
                         "points": {"type": "array", "items": _POINT3},
                         "visibility": {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1}},
+                        "score": {"type": "number", "description": "a predicted lane's confidence (optional)"},
                     },
                     "required": ["track_id", "category", "points", "visibility"],
                 },
@@ -82,8 +83,9 @@ def time_json(t_ns: int) -> dict[str, int]:
     return {"sec": sec, "nsec": nsec}
 
 
-def lanes3d(t_ns: int, frame_id: str, lanes: Sequence[Lane]) -> dict[str, Any]:
-    """A ``lanelab.Lanes3D`` message; each lane's points must already be in ``frame_id``."""
+def lanes3d(t_ns: int, frame_id: str, lanes: Sequence[Lane], scores: bool = False) -> dict[str, Any]:
+    """A ``lanelab.Lanes3D`` message; each lane's points must already be in ``frame_id``.
+    scores: write each lane's ``score`` (predictions; labels have none)."""
     return {
         "timestamp": time_json(t_ns),
         "frame_id": frame_id,
@@ -93,6 +95,7 @@ def lanes3d(t_ns: int, frame_id: str, lanes: Sequence[Lane]) -> dict[str, Any]:
                 "category": int(lane.category),
                 "points": lane.points.tolist(),
                 "visibility": lane.visibility.tolist(),
+                **({"score": float(lane.score)} if scores else {}),
             }
             for lane in lanes
         ],

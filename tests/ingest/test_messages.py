@@ -41,6 +41,6 @@ def test_raw_image_rows_lose_their_padding():
     schema = FoxgloveProtobufEncoder().schema(RAW_IMAGE)
     raw = RawMessage(Channel(id=1, topic="/image", message_encoding="protobuf", metadata={}, schema_id=1),
                      Schema(id=1, data=schema.data, encoding=schema.encoding, name=schema.name),
-                     message.SerializeToString())
+                     message.SerializeToString(), log_time=0, publish_time=0, sequence=0)
     image = Decoder().decode(raw, IMAGE)
     assert (image.encoding, image.width, image.height, image.data) == ("rgb8", 3, 2, pixels.tobytes())

@@ -154,7 +154,8 @@ def assert_conforms(value: Any, schema: dict, where: str = "$") -> None:
         for key, item in value.items():
             assert key in properties or "additionalProperties" in schema, f"{where}.{key} is not in the schema"
             assert_conforms(item, properties.get(key) or schema["additionalProperties"], f"{where}.{key}")
-        assert set(properties) <= set(value), f"{where}: misses {set(properties) - set(value)}"
+        required = set(schema.get("required", properties))  # without "required": every property, as our schemas mean
+        assert required <= set(value), f"{where}: misses {required - set(value)}"
     if schema["type"] == "array":
         for i, item in enumerate(value):
             assert_conforms(item, schema["items"], f"{where}[{i}]")

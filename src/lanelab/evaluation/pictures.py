@@ -26,6 +26,7 @@ from lanelab.openlane.read import read_ground_truth, read_prediction
 from lanelab.viz.panels import categories_of, comparison_row, stack_rows
 
 TOP_VIEW_X_RANGE = (-15.0, 15.0)  # metres: the evaluated |x| < 10 and a margin
+_TEXT_COLOR, _SHADOW_COLOR = (255, 255, 255), (0, 0, 0)  # label_panel
 
 
 @dataclass(frozen=True)
@@ -109,3 +110,10 @@ def _with_z(lane: np.ndarray) -> np.ndarray:
     points = np.zeros((len(lane), 3))
     points[:, : min(lane.shape[1], 3)] = lane[:, :3]
     return points
+
+
+def label_panel(panel: np.ndarray, text: str) -> np.ndarray:
+    """panel with text written in its top-left corner, shadowed so that it reads on any image."""
+    for color, thickness in ((_SHADOW_COLOR, 3), (_TEXT_COLOR, 1)):
+        cv2.putText(panel, text, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, color, thickness, cv2.LINE_AA)
+    return panel

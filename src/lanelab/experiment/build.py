@@ -80,13 +80,21 @@ class RunConfigInCheckpoint(pl.Callback):
 def run_config(checkpoint: str | Path) -> dict[str, Any]:
     """The resolved run config lanelab-train wrote into the checkpoint, in today's keys.
     Raises ConfigError naming the checkpoint when it holds none."""
+    return read_checkpoint(checkpoint)[CONFIG_KEY]
+
+
+def read_checkpoint(checkpoint: str | Path) -> dict[str, Any]:
+    """A lanelab-train checkpoint's content (on the CPU), its run config (``CONFIG_KEY``) in
+    today's keys. Raises ConfigError naming the checkpoint when it cannot be read or holds no
+    run config."""
     try:
         content = torch.load(checkpoint, map_location="cpu", weights_only=False)
     except Exception as err:  # torch raises many kinds for a bad file
         raise ConfigError(f"checkpoint={checkpoint}: not a readable checkpoint ({err})") from None
     if not isinstance(content, dict) or CONFIG_KEY not in content:
         raise ConfigError(f"checkpoint={checkpoint}: holds no lanelab run config (not written by lanelab-train)")
-    return _up_to_date(content[CONFIG_KEY])
+    content[CONFIG_KEY] = _up_to_date(content[CONFIG_KEY])
+    return content
 
 
 def _up_to_date(config: dict[str, Any]) -> dict[str, Any]:

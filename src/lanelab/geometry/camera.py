@@ -50,10 +50,13 @@ def in_image(uv: Tensor, width: int, height: int) -> Tensor:
 
 def pixel_rays(uv: Tensor, K: Tensor) -> Tensor:
     """Camera-frame rays (..., N, 3) through pixels uv (..., N, 2), scaled to z = 1: K^-1 [u, v, 1]."""
-    uv1 = torch.cat([uv, torch.ones_like(uv[..., :1])], dim=-1)
-    # K is upper triangular, so a triangular solve is exact and cheaper than an inverse.
-    rays = torch.linalg.solve_triangular(K, uv1.transpose(-1, -2), upper=True).transpose(-1, -2)
-    return rays / rays[..., 2:]
+    # K is upper triangular: back substitution, written out (exact, cheaper than an inverse, and
+    # exportable: ONNX has no triangular solve). Rays at z = 1 need no third row.
+    k = K.unsqueeze(-3)  # (..., 1, 3, 3), broadcast over the N pixels
+    u, v = uv.unbind(-1)
+    y = (k[..., 2, 2] * v - k[..., 1, 2]) / k[..., 1, 1]
+    x = (k[..., 2, 2] * u - k[..., 0, 1] * y - k[..., 0, 2]) / k[..., 0, 0]
+    return torch.stack([x, y, torch.ones_like(x)], dim=-1)
 
 
 def backproject(uv: Tensor, depth: Tensor, K: Tensor) -> Tensor:

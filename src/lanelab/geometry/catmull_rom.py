@@ -18,6 +18,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from lanelab.geometry.checks import holds
+
 # Eq. 15: local coefficient matrix M~_CR, rows for s~^3, s~^2, s~, 1; columns for p_{k-1}..p_{k+2}.
 CR_MATRIX = 0.5 * torch.tensor(
     [
@@ -71,7 +73,7 @@ def sampling_matrix(num_control_points: int, s: Tensor, derivative: int = 0) -> 
     _check_num_control_points(num_control_points)
     if derivative not in (0, 1, 2):
         raise ValueError(f"derivative must be 0, 1 or 2, got {derivative}")
-    if not bool(((s >= -_S_TOLERANCE) & (s <= 1 + _S_TOLERANCE)).all()):
+    if not holds((s >= -_S_TOLERANCE) & (s <= 1 + _S_TOLERANCE)):
         raise ValueError("curve arguments s must lie in [0, 1]")
     s = s.clamp(0.0, 1.0)
     # Under autocast the matmul below would come out in bf16/fp16 and no longer match the

@@ -19,6 +19,7 @@ import torch
 from torch import Tensor
 
 from lanelab.geometry.catmull_rom import curve_arguments, sampling_matrix
+from lanelab.geometry.checks import holds
 
 REPRESENTATIONS = ("catmull_rom", "discrete")
 
@@ -61,7 +62,7 @@ class LaneCurves:
         """The bases (..., S, M) of geometry and visibility at longitudinal positions y (..., S),
         which must lie in y_range."""
         s = curve_arguments(y, *self.y_range)
-        if not bool(((s >= -_S_TOLERANCE) & (s <= 1 + _S_TOLERANCE)).all()):
+        if not holds((s >= -_S_TOLERANCE) & (s <= 1 + _S_TOLERANCE)):
             raise ValueError(f"the positions y must lie in the control points' y range {self.y_range}")
         return lane_bases(self.representation, self.num_points, s)
 

@@ -125,10 +125,15 @@ class LaneDetectionModule(pl.LightningModule):
     # Each evaluation run starts from an empty stream state (module doc).
     on_validation_start = on_validation_end = on_test_start = on_predict_start = _forget_stream
 
+    def predictions(self, outputs: Mapping[str, Any], y: Tensor) -> DenseLanes:
+        """The detector's lanes at longitudinal positions y (S,), with the metric's visibility
+        threshold and the module's NMS, as validation, test and prediction see them."""
+        nms = None if self.nms_distance is None else (self.nms_distance, self.metric_config.close_range)
+        return predicted_lanes(self.net, outputs, y, self.metric_config.visibility_threshold, nms)
+
     def _predictions(self, outputs: Mapping[str, Any], batch: Mapping[str, Any]) -> DenseLanes:
         """Predicted lanes at the ground truth's y grid (the same for every sample)."""
-        nms = None if self.nms_distance is None else (self.nms_distance, self.metric_config.close_range)
-        return predicted_lanes(self.net, outputs, batch["gt_y"][0], self.metric_config.visibility_threshold, nms)
+        return self.predictions(outputs, batch["gt_y"][0])
 
     # ----------------------------------------------------------------- training
     def training_step(self, batch: Mapping[str, Any], batch_idx: int) -> Tensor:

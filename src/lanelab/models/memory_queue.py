@@ -11,6 +11,10 @@ Contents are detached (StreamPETR): no gradient flows into earlier frames. Strea
 
 Token order of ``read``: frame slot (age 1 = the previous frame first), line, point, so tokens
 [l·M, (l + 1)·M) are the M points of one stored line.
+
+The queue's contents are four tensors (:class:`QueueState`): ``state`` hands them out and
+``load`` puts them back, so a graph without Python objects (an exported model,
+:class:`lanelab.models.explicit_state.ExplicitStateStep`) carries the memory as inputs and outputs.
 """
 
 from __future__ import annotations
@@ -36,6 +40,26 @@ class MemoryState:
     points: Tensor
     valid: Tensor
     age: Tensor
+
+
+@dataclass
+class QueueState:
+    """What a memory queue holds, slot 0 the newest frame, T slots of N_mem lines of M points.
+
+    embeddings (B, T, N_mem, M, C) the lines' query embeddings; points (B, T, N_mem, M, 4)
+    control points (x, y, z, v), each slot in the lane frame of its own frame (propagated only
+    when read); poses (B, T, 4, 4) T_world_lane of each slot's frame (the dtype of the poses
+    pushed: float64 for world coordinates); valid (B, T) bool, the slots filled since the last
+    reset. An empty queue is all zeros with identity poses and no valid slot.
+    """
+
+    embeddings: Tensor
+    points: Tensor
+    poses: Tensor
+    valid: Tensor
+
+    def tensors(self) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+        return self.embeddings, self.points, self.poses, self.valid
 
 
 class MemoryQueue:
@@ -106,13 +130,41 @@ class MemoryQueue:
             age=age.reshape(B, -1),
         )
 
+    def state(self) -> QueueState | None:
+        """The contents as tensors (not copies); None before the first push."""
+        if self._valid is None:
+            return None
+        return QueueState(self._embeddings, self._points, self._poses, self._valid)
+
+    def load(self, state: QueueState) -> None:
+        """Take ``state`` (of T = num_frames slots of num_lines lines) as the contents."""
+        if state.valid.shape[1] != self.num_frames or state.points.shape[2] != self.num_lines:
+            raise ValueError(f"a state of {state.valid.shape[1]} frames of {state.points.shape[2]} lines does not fit "
+                             f"a queue of {self.num_frames} frames of {self.num_lines} lines")
+        self._embeddings, self._points, self._poses, self._valid = state.tensors()
+
+    def empty_state(
+        self,
+        batch: int,
+        num_points: int,
+        embed_dim: int,
+        dtypes: tuple[torch.dtype, torch.dtype, torch.dtype] = (torch.float32, torch.float32, torch.float64),
+        device: torch.device | str | None = None,
+    ) -> QueueState:
+        """An empty queue's state for ``batch`` streams of lines of ``num_points`` points and
+        ``embed_dim`` channels; dtypes of the embeddings, points and poses."""
+        B, T, L, M, C = batch, self.num_frames, self.num_lines, num_points, embed_dim
+        return QueueState(
+            embeddings=torch.zeros(B, T, L, M, C, dtype=dtypes[0], device=device),
+            points=torch.zeros(B, T, L, M, 4, dtype=dtypes[1], device=device),
+            poses=torch.eye(4, dtype=dtypes[2], device=device).expand(B, T, 4, 4).clone(),
+            valid=torch.zeros(B, T, dtype=torch.bool, device=device),
+        )
+
     def _allocate(self, embeddings: Tensor, control_points: Tensor, T_world_lane: Tensor) -> None:
         B, _, M, C = embeddings.shape
-        T, L = self.num_frames, self.num_lines
-        self._embeddings = embeddings.new_zeros(B, T, L, M, C)
-        self._points = control_points.new_zeros(B, T, L, M, 4)
-        self._poses = torch.eye(4, dtype=T_world_lane.dtype, device=T_world_lane.device).expand(B, T, 4, 4).clone()
-        self._valid = torch.zeros(B, T, dtype=torch.bool, device=embeddings.device)
+        dtypes = embeddings.dtype, control_points.dtype, T_world_lane.dtype
+        self.load(self.empty_state(B, M, C, dtypes, embeddings.device))
 
 
 def _enqueue(queue: Tensor, newest: Tensor) -> Tensor:

@@ -161,6 +161,7 @@ class SparseLaneSTP(nn.Module):
             GroundPositionalEncoding(embed_dim, tuple(x_range), tuple(y_range), tuple(z_range)) if ground_encoding else None
         )
         self.num_memory_frames, self.num_memory_lines = num_memory_frames, num_memory_lines
+        self.embed_dim, self.num_points = embed_dim, num_points
         self._stream = MemoryQueue(num_memory_frames, num_memory_lines)  # the streaming state
 
     @property
@@ -231,12 +232,17 @@ class SparseLaneSTP(nn.Module):
             memory      MemoryState | None, the propagated memory this frame attended to (what
                         the temporal regulariser, eq. 12-13, compares with); None when empty
         """
+        return self.step_with(self._stream, frame)
+
+    def step_with(self, memory: MemoryQueue, frame: Mapping[str, Tensor]) -> dict[str, Any]:
+        """``step`` against the given memory queue instead of the model's own (an exported
+        graph carries its memory as tensors: lanelab.models.explicit_state)."""
         if "reset" in frame:
-            self.reset(frame["reset"])
+            memory.reset(frame["reset"])
         images = frame["images"]
         (encoded,) = self._encode(images[:, None], frame["K"][:, None], frame["T_lane_cam"][:, None])
         return self._decode(
-            encoded, frame["K"], frame["T_lane_cam"], frame["T_world_lane"], tuple(images.shape[-2:]), self._stream
+            encoded, frame["K"], frame["T_lane_cam"], frame["T_world_lane"], tuple(images.shape[-2:]), memory
         )
 
     def anchors(self) -> Tensor | None:

@@ -93,13 +93,11 @@ def temporal_neighbours(
     """
     B, N, M = points.shape[:3]
     # Exact distances (not the matmul shortcut), so near-ties resolve the same on every device;
-    # in float32 at least: bf16 has metres of spacing at 100 m, and CUDA's cdist has no bf16.
+    # in float32 at least: bf16 has metres of spacing at 100 m. Differences written out rather
+    # than torch.cdist, which ONNX cannot express.
     dtype = torch.promote_types(points.dtype, torch.float32)
-    distance = torch.cdist(
-        points[..., :3].reshape(B, N * M, 3).to(dtype),
-        memory_points[..., :3].to(dtype),
-        compute_mode="donot_use_mm_for_euclid_dist",
-    )
+    offsets = points[..., :3].reshape(B, N * M, 1, 3).to(dtype) - memory_points[:, None, :, :3].to(dtype)
+    distance = offsets.square().sum(-1).sqrt()  # (B, N·M, K)
     distance = distance.masked_fill_(~memory_valid[:, None, :], torch.inf)
     k = min(m_tca, memory_points.shape[1])
     nearest, index = distance.topk(k, dim=-1, largest=False)

@@ -185,6 +185,23 @@ class TopView:
         return canvas
 
 
+def draw_polylines(
+    image: np.ndarray,
+    polylines: Sequence[np.ndarray],
+    colors: Sequence[tuple[int, int, int]],
+    thickness: int = 2,
+) -> np.ndarray:
+    """Return a copy of a BGR image (H, W, 3) with 2D polylines (P, 2) in pixels (the pixel-edge
+    convention of lanelab.geometry.camera) drawn in their BGR colours."""
+    canvas = image.copy()
+    for line, color in zip(polylines, colors):
+        if len(line) >= 2:
+            # Pixel centres sit at half-integers; OpenCV draws at integer pixel indices.
+            run = np.round((np.asarray(line, np.float64) - 0.5) * 16).astype(np.int32)
+            cv2.polylines(canvas, [run], False, color, thickness, cv2.LINE_AA, shift=4)
+    return canvas
+
+
 def draw_top_view(
     lanes: Sequence[Lane],
     size: tuple[int, int] = (400, 200),

@@ -1,0 +1,150 @@
+"""Latency per frame of the exported streaming SparseLaneSTP (lanelab-export) against eager ``step()``.
+
+    python benchmarks/bench_export.py [--configs tiny paper] [--device cpu|cuda] [--frames 20]
+        [--warmup 3] [--threads N] [--json out.json]
+
+For each configuration of ``bench_sparselanestp.py`` (random weights, eval mode, no gradient,
+batch 1) the same synthetic clip (:func:`lanelab.deploy.export.synthetic_clip`, memory reset at
+its first and middle frame) streams through:
+
+- ``eager step (sparse STA)``: ``SparseLaneSTP.step``, as lanelab-predict runs it;
+- ``eager step (dense STA)``: the same with the dense attention the exported graph holds;
+- ``torch.export``: the ExportedProgram's module (``ExplicitStateStep``, state carried as tensors);
+- ``onnxruntime``: the ONNX file of lanelab-export on onnxruntime's CPU provider with as many
+  threads as torch (the CUDA provider where onnxruntime has it and ``--device cuda``).
+
+Variants run interleaved frame by frame, so that load from other processes affects them alike;
+figures are medians over the timed frames after ``--warmup`` frames. The table also gives the
+time each export took and the largest difference of the exported lanes from eager ``step()``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import torch
+from bench_sparselanestp import CONFIGS
+
+from lanelab.deploy.export import ALL_INPUTS, write_onnx, example_inputs, synthetic_clip
+from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep
+from lanelab.models.sparselanestp import SparseLaneSTP
+
+Y = torch.linspace(3.0, 103.0, 100)  # the default data.y_grid
+
+
+def runners(config: dict, device: torch.device, folder: Path) -> tuple[dict[str, Callable], dict[str, float]]:
+    """Per variant, a function frame -> lanes (B, N, S, 4) carrying its own state; export seconds."""
+    torch.manual_seed(0)
+    net = SparseLaneSTP(**config["model"]).to(device).eval()
+    dense = SparseLaneSTP(**{**config["model"], "attention": "dense"}).to(device).eval()
+    dense.load_state_dict(net.state_dict())
+    step = ExplicitStateStep(net, Y.to(device)).eval()
+    example = tuple(t.to(device) for t in example_inputs(step, config["image_size"], 1))
+    seconds = {}
+    start = time.perf_counter()
+    exported = torch.export.export(step, example).module()
+    seconds["torch.export"] = time.perf_counter() - start
+
+    def eager(model: SparseLaneSTP) -> Callable:
+        return lambda frame: model.decode(model.step(frame), Y.to(device))
+
+    def stateful(run: Callable) -> Callable:
+        state = list(step.initial_state(1, device).tensors())
+
+        def call(frame: dict) -> torch.Tensor:
+            outputs = run(*(frame[name] for name in INPUT_NAMES), *state)
+            state[:] = outputs[len(OUTPUT_NAMES):]
+            return outputs[2]
+
+        return call
+
+    variants = {"eager step (sparse STA)": eager(net), "eager step (dense STA)": eager(dense),
+                "torch.export": stateful(exported)}  # fmt: skip
+    try:
+        import onnxruntime
+    except ImportError:
+        print("onnxruntime is not installed: no ONNX row (pip install 'lanelab[export]')")
+        return variants, seconds
+    start = time.perf_counter()
+    cpu_step = ExplicitStateStep(net.cpu(), Y).eval() if device.type != "cpu" else step
+    write_onnx(cpu_step, tuple(t.cpu() for t in example), folder / "model.onnx", {})
+    net.to(device)
+    seconds["onnxruntime"] = time.perf_counter() - start
+    providers = ["CPUExecutionProvider"]
+    if device.type == "cuda" and "CUDAExecutionProvider" in onnxruntime.get_available_providers():
+        providers.insert(0, "CUDAExecutionProvider")
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = torch.get_num_threads()  # as many threads as torch gets
+    session = onnxruntime.InferenceSession(str(folder / "model.onnx"), options, providers=providers)
+
+    def ort(*inputs: torch.Tensor) -> list[torch.Tensor]:
+        outputs = session.run(None, {name: t.cpu().numpy() for name, t in zip(ALL_INPUTS, inputs)})
+        return [torch.from_numpy(o).to(device) for o in outputs]
+
+    variants["onnxruntime"] = stateful(ort)
+    return variants, seconds
+
+
+def measure(config: dict, args: argparse.Namespace) -> list[dict]:
+    device = torch.device(args.device)
+    frames = [{k: v.to(device) for k, v in f.items()}
+              for f in synthetic_clip(config["image_size"], args.warmup + args.frames, 1)]  # fmt: skip
+    sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
+    with tempfile.TemporaryDirectory() as folder:
+        variants, export_seconds = runners(config, device, Path(folder))
+        times: dict[str, list[float]] = {label: [] for label in variants}
+        lanes: dict[str, list[torch.Tensor]] = {label: [] for label in variants}
+        with torch.inference_mode():
+            for frame in frames:
+                for label, run in variants.items():
+                    sync()
+                    start = time.perf_counter()
+                    out = run(frame)
+                    sync()
+                    times[label].append(time.perf_counter() - start)
+                    lanes[label].append(out.float().cpu())
+    reference = lanes["eager step (sparse STA)"]
+    rows = []
+    for label in variants:
+        seconds = statistics.median(times[label][args.warmup :])
+        difference = max(float((a - b).abs().max()) for a, b in zip(lanes[label], reference))
+        rows.append({"model": label, "ms_per_frame": 1e3 * seconds, "fps": 1 / seconds,
+                     "export_s": export_seconds.get(label), "max_lane_difference": difference})  # fmt: skip
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--configs", nargs="+", choices=sorted(CONFIGS), default=["tiny", "paper"])
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--frames", type=int, default=20, help="timed frames")
+    parser.add_argument("--warmup", type=int, default=3)
+    parser.add_argument("--threads", type=int, help="torch CPU threads")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    print(f"device={args.device} torch={torch.__version__} threads={torch.get_num_threads()} "
+          f"machine={platform.processor() or platform.machine()}")
+    print(f"{'config':<6} {'variant':<24} {'ms/frame':>9} {'frames/s':>9} {'export s':>9} {'max |Δ lanes| m':>16}")
+    rows = []
+    for name in args.configs:
+        for row in measure(CONFIGS[name], args):
+            rows.append({"config": name, **row})
+            export_s = f"{row['export_s']:9.1f}" if row["export_s"] is not None else f"{'-':>9}"
+            print(f"{name:<6} {row['model']:<24} {row['ms_per_frame']:9.1f} {row['fps']:9.2f} {export_s} "
+                  f"{row['max_lane_difference']:16.2e}")
+    if args.json:
+        meta = {"device": args.device, "torch": torch.__version__, "machine": platform.processor()}
+        args.json.write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
+
+
+if __name__ == "__main__":
+    main()

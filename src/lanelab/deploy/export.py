@@ -1,0 +1,237 @@
+"""A trained SparseLaneSTP's streaming step as a file that runs without lanelab: its memory as
+explicit inputs and outputs (``state_in_*`` -> ``state_out_*``), a reset flag, and the lanes
+decoded in the graph (:class:`lanelab.models.explicit_state.ExplicitStateStep` has the layout).
+
+Formats:
+
+- ``torch``: ``torch.export``'s ExportedProgram, saved with ``torch.export.save`` (.pt2); run it
+  with ``torch.export.load(path).module()(images, K, T_lane_cam, T_world_lane, reset, *state)``;
+- ``onnx``: the ONNX graph of ``torch.onnx.export`` (the dynamo exporter, at the opset the
+  installed exporter chooses), for onnxruntime or any ONNX runtime; inputs and outputs by name.
+
+Both hold ``lanelab`` metadata (JSON; the .pt2's extra file ``lanelab.json``, the ONNX model's
+``metadata_props``): the names and order of inputs and outputs, the image pipeline (size, crop,
+mean, std), the y grid of ``lanes``, the categories of ``logits``, the visibility threshold and
+lane NMS distance (NMS stays outside the graph: it is a loop over lanes), and the memory's size.
+
+:func:`check` runs a written file over a clip, its state carried from frame to frame, beside
+``step`` of the eager model, and returns the largest difference of every output.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import logging
+import warnings
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from lanelab.atomic_file import atomic_output
+from lanelab.deploy.trained import TrainedDetector
+from lanelab.geometry import make_transform
+from lanelab.lanes import LANE_CATEGORY_IDS
+from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, STATE_NAMES, ExplicitStateStep
+from lanelab.models.memory_queue import MemoryQueue
+from lanelab.models.sparselanestp import SparseLaneSTP
+
+METADATA_KEY = "lanelab"
+STATE_IN = tuple(f"state_in_{name}" for name in STATE_NAMES)
+STATE_OUT = tuple(f"state_out_{name}" for name in STATE_NAMES)
+ALL_INPUTS, ALL_OUTPUTS = INPUT_NAMES + STATE_IN, OUTPUT_NAMES + STATE_OUT
+
+Frame = dict[str, Tensor]  # images, K, T_lane_cam, T_world_lane, reset; batch first
+
+
+class ExportError(RuntimeError):
+    """The exporter could not write the model, or its check failed; the message says why."""
+
+
+@dataclass(frozen=True)
+class Exported:
+    """A written file: its format, the ONNX opset (None for torch) and its metadata."""
+
+    path: Path
+    format: str
+    opset: int | None
+    metadata: dict[str, Any]
+
+
+def export(step: ExplicitStateStep, fmt: str, out: str | Path, example: tuple[Tensor, ...], metadata: dict[str, Any],
+           check_with: Callable[[Path], None] | None = None) -> Exported:
+    """Write ``step``, traced with the inputs ``example`` (their batch size is the file's), as
+    ``fmt`` to ``out``, atomically; ``metadata`` is added to the file's (see the module).
+    ``check_with(path)`` runs on the written file before it takes its name (raise to refuse it:
+    nothing is left then)."""
+    metadata = {**metadata, "inputs": list(ALL_INPUTS), "outputs": list(ALL_OUTPUTS), "batch": example[0].shape[0]}
+    with atomic_output(out) as tmp:
+        if fmt == "torch":
+            program = torch.export.export(step, example)
+            with open(tmp, "wb") as handle:  # a handle: torch wants a path ending in .pt2, the temporary does not
+                torch.export.save(program, handle, extra_files={f"{METADATA_KEY}.json": json.dumps(metadata)})
+            opset = None
+        else:
+            opset = write_onnx(step, example, tmp, metadata)
+        if check_with is not None:
+            check_with(tmp)
+    return Exported(Path(out), fmt, opset, metadata)
+
+
+def export_checkpoint(trained: TrainedDetector, fmt: str, out: str | Path, batch: int, check_frames: int,
+                      tolerance: float) -> tuple[Exported, dict[str, float]]:
+    """Export a loaded checkpoint's SparseLaneSTP for ``batch`` streams; unless ``check_frames``
+    is 0, check the written file over a synthetic clip of that many frames against ``step``
+    (ExportError, and no file, when an output differs by more than ``tolerance``). Returns the
+    file and the largest difference of each output (empty without a check)."""
+    net = trained.net
+    if not isinstance(net, SparseLaneSTP):
+        raise ExportError(f"lanelab-export exports SparseLaneSTP; this checkpoint's detector is {type(net).__name__}")
+    net, y = net.cpu().eval(), trained.y.cpu()
+    step = ExplicitStateStep(net, y).eval()
+    image_size = trained.resize.height, trained.resize.width
+    differences: dict[str, float] = {}
+
+    def check_file(path: Path) -> None:
+        differences.update(check(net, y, runner(path, fmt), synthetic_clip(image_size, check_frames, batch)))
+        worst = max(differences, key=differences.get)
+        if differences[worst] > tolerance:
+            raise ExportError(f"the exported model differs from step() by {differences[worst]:.3g} in {worst} over "
+                              f"{check_frames} frames (check.tolerance={tolerance:g}); nothing written")
+
+    example = example_inputs(step, image_size, batch)
+    exported = export(step, fmt, out, example, metadata_of(trained), check_file if check_frames else None)
+    return exported, differences
+
+
+def metadata_of(trained: TrainedDetector) -> dict[str, Any]:
+    """What a deployment needs besides the graph (the module doc), from the checkpoint."""
+    net, module, resize = trained.net, trained.module, trained.resize
+    data = trained.config["data"]
+    return {
+        "model": type(net).__name__,
+        "checkpoint": str(trained.checkpoint),
+        "image_size": [resize.height, resize.width],
+        "crop": None if resize.crop is None else list(resize.crop),
+        "mean": list(data["mean"]),
+        "std": list(data["std"]),
+        "y": trained.y.cpu().tolist(),
+        "categories": [*LANE_CATEGORY_IDS, "background"],
+        "visibility_threshold": module.metric_config.visibility_threshold,
+        "nms_distance": module.nms_distance,
+        "memory": {"frames": net.num_memory_frames, "lines": net.num_memory_lines, "points": net.num_points,
+                   "channels": net.embed_dim},
+    }
+
+def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path, metadata: dict[str, Any]) -> int:
+    """Write ``step`` traced with ``example`` as an ONNX file at ``path`` with ``metadata``
+    under the ``lanelab`` key; the opset the exporter chose."""
+    try:
+        import onnx
+    except ImportError:
+        raise ExportError("format=onnx needs the onnx and onnxscript packages: pip install 'lanelab[export]'") from None
+    # The exporter reports its progress on stdout, warns of torchvision ops it cannot offer, and its
+    # graph optimiser logs every rewrite; a failure raises with all that matters.
+    with contextlib.redirect_stdout(io.StringIO()), _quiet("torch.onnx", "onnxscript", "onnx_ir"), \
+            warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        torch.onnx.export(step, example, str(path), dynamo=True, input_names=list(ALL_INPUTS),
+                          output_names=list(ALL_OUTPUTS), external_data=False, verbose=False)  # fmt: skip
+    model = onnx.load(str(path))
+    entry = model.metadata_props.add()
+    entry.key, entry.value = METADATA_KEY, json.dumps(metadata)
+    onnx.save(model, str(path))
+    return next(o.version for o in model.opset_import if o.domain in ("", "ai.onnx"))
+
+
+@contextlib.contextmanager
+def _quiet(*loggers: str) -> Iterator[None]:
+    """The named loggers at ERROR and above for the time of the block."""
+    levels = {name: logging.getLogger(name).level for name in loggers}
+    for name in loggers:
+        logging.getLogger(name).setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        for name, level in levels.items():
+            logging.getLogger(name).setLevel(level)
+
+
+def example_inputs(step: ExplicitStateStep, image_size: Sequence[int], batch: int) -> tuple[Tensor, ...]:
+    """Inputs of the right shapes and dtypes for tracing: the first frame of :func:`synthetic_clip`
+    and an empty memory."""
+    frame = synthetic_clip(image_size, 1, batch)[0]
+    return (*(frame[name] for name in INPUT_NAMES), *step.initial_state(batch).tensors())
+
+
+def synthetic_clip(image_size: Sequence[int], num_frames: int, batch: int, seed: int = 0) -> list[Frame]:
+    """A clip of ``num_frames`` frames for ``batch`` streams, without a dataset: noise images of
+    ``image_size`` (H, W) (normalised), a camera 1.5 m up looking ahead with a 53° field of view,
+    an ego driving 2 m per frame while turning; reset at the first and the middle frame."""
+    height, width = image_size
+    generator = torch.Generator().manual_seed(seed)
+    K = torch.tensor([[width, 0.0, width / 2], [0.0, width, height / 2], [0.0, 0.0, 1.0]])
+    optical_to_lane = torch.tensor([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+    T_lane_cam = make_transform(optical_to_lane, torch.tensor([0.0, 0.0, 1.5]))
+    frames = []
+    for f in range(num_frames):
+        yaw = torch.tensor(0.01 * f, dtype=torch.float64)
+        rotation = torch.tensor([[yaw.cos(), -yaw.sin(), 0.0], [yaw.sin(), yaw.cos(), 0.0], [0.0, 0.0, 1.0]],
+                                dtype=torch.float64)  # fmt: skip
+        pose = make_transform(rotation, torch.tensor([0.0, 2.0 * f, 0.0], dtype=torch.float64))
+        frames.append({
+            "images": torch.randn(batch, 3, height, width, generator=generator),
+            "K": K.expand(batch, 3, 3).clone(),
+            "T_lane_cam": T_lane_cam.expand(batch, 4, 4).clone(),
+            "T_world_lane": pose.expand(batch, 4, 4).clone(),
+            "reset": torch.full((batch,), f in (0, num_frames // 2)),
+        })  # fmt: skip
+    return frames
+
+
+def runner(path: str | Path, fmt: str) -> Callable[..., tuple[Tensor, ...]]:
+    """A function running the written file on the CPU: tensors in ``ALL_INPUTS`` order ->
+    tensors in ``ALL_OUTPUTS`` order (onnxruntime for ONNX)."""
+    if fmt == "torch":
+        with open(path, "rb") as handle:
+            module = torch.export.load(handle).module()
+        return lambda *inputs: tuple(module(*inputs))
+    try:
+        import onnxruntime
+    except ImportError:
+        raise ExportError("checking an ONNX file needs onnxruntime: pip install 'lanelab[export]' "
+                          "(or check.frames=0 to export without the check)") from None
+    session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+
+    def run(*inputs: Tensor) -> tuple[Tensor, ...]:
+        outputs = session.run(list(ALL_OUTPUTS), {name: t.cpu().numpy() for name, t in zip(ALL_INPUTS, inputs)})
+        return tuple(torch.from_numpy(output) for output in outputs)
+
+    return run
+
+
+def check(net: SparseLaneSTP, y: Tensor, run: Callable[..., tuple[Tensor, ...]], clip: Sequence[Frame]) -> dict[str, float]:
+    """Run the exported step ``run`` over ``clip`` (its state carried from frame to frame) and
+    ``net.step`` beside it (its own memory queue); the largest absolute difference of each
+    output and state tensor over the clip."""
+    memory = MemoryQueue(net.num_memory_frames, net.num_memory_lines)
+    state = memory.empty_state(clip[0]["images"].shape[0], net.num_points, net.embed_dim).tensors()
+    worst = dict.fromkeys(ALL_OUTPUTS, 0.0)
+    net = net.eval()
+    for frame in clip:
+        with torch.inference_mode():
+            reference = net.step_with(memory, frame)
+            expected = [reference["points"][-1], reference["logits"][-1], net.decode(reference, y)]
+        kept = memory.state()
+        expected += list(kept.tensors()) if kept is not None else list(state)  # no memory: the state passes through
+        outputs = run(*(frame[name] for name in INPUT_NAMES), *state)
+        for name, got, want in zip(ALL_OUTPUTS, outputs, expected):
+            difference = (got.detach().double().cpu() - want.detach().double().cpu()).abs()
+            worst[name] = max(worst[name], float(difference.max()) if difference.numel() else 0.0)
+        state = outputs[len(OUTPUT_NAMES):]
+    return worst

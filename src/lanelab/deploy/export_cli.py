@@ -1,0 +1,73 @@
+"""``lanelab-export``: a trained SparseLaneSTP's streaming step as an ONNX or torch.export file,
+its memory as explicit inputs and outputs (layout: :mod:`lanelab.models.explicit_state`).
+
+    lanelab-export checkpoint=FILE format=onnx|torch out=FILE [batch_size=1] [check.frames=20] [check.tolerance=1e-4]
+
+Options are Hydra overrides of ``conf/export.yaml``. The file is written only once it has run
+over a clip beside the eager model (:func:`lanelab.deploy.export.export_checkpoint`); prints
+the inputs, outputs, the ONNX opset and the check's largest differences. Exits with status 1
+when the checkpoint cannot be used (one line naming it) or the check fails, 2 on a bad option.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import hydra
+from omegaconf import DictConfig
+from omegaconf.errors import MissingMandatoryValue
+
+from lanelab.config_checks import ConfigError, register_schema, typed
+from lanelab.deploy.config import SCHEMA_NAME, ExportConfig, validate
+
+register_schema(SCHEMA_NAME, ExportConfig)
+NAME = "lanelab-export"
+
+
+def run(cfg: ExportConfig) -> int:
+    """Export with validated options; the exit status."""
+    # Heavy imports (torch, the model) only once the options are good.
+    from lanelab.deploy.export import ExportError, export_checkpoint
+    from lanelab.deploy.trained import load_trained
+    from lanelab.finite import NonFiniteError
+
+    try:
+        trained = load_trained(cfg.checkpoint, "cpu")
+        exported, differences = export_checkpoint(trained, cfg.format, cfg.out, cfg.batch_size, cfg.check.frames,
+                                                  cfg.check.tolerance)  # fmt: skip
+    except (ConfigError, NonFiniteError, ExportError) as err:
+        print(f"{NAME}: {err}", file=sys.stderr)
+        return 1
+    meta = exported.metadata
+    opset = f", ONNX opset {exported.opset}" if exported.opset is not None else ""
+    print(f"{NAME}: wrote {exported.path} ({exported.format}{opset}, {meta['batch']} stream(s) of "
+          f"{meta['image_size'][0]}x{meta['image_size'][1]} images; memory of {meta['memory']['frames']} frames)")
+    print(f"  inputs:  {', '.join(meta['inputs'])}")
+    print(f"  outputs: {', '.join(meta['outputs'])}")
+    if differences:
+        print(f"  check over {cfg.check.frames} frames against step(), largest |difference| (tolerance "
+              f"{cfg.check.tolerance:g}):")
+        for name, value in differences.items():
+            print(f"    {name:<24}{value:.3g}")
+    return 0
+
+
+@hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="export")
+def _run(cfg: DictConfig) -> None:
+    try:
+        options = validate(typed(cfg, ExportConfig))
+    except MissingMandatoryValue as err:
+        print(f"{NAME}: missing option {err.full_key}=...", file=sys.stderr)
+        sys.exit(2)
+    except ConfigError as err:
+        print(f"{NAME}: bad option: {err}", file=sys.stderr)
+        sys.exit(2)
+    sys.exit(run(options))
+
+
+def main() -> None:
+    _run()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,37 @@
+"""The streaming step with its memory as explicit tensors equals ``step()`` (before any export)."""
+
+import torch
+from test_sparselanestp import B, F, frame, model, window
+
+from lanelab.models.explicit_state import ExplicitStateStep
+from lanelab.models.memory_queue import MemoryQueue
+
+
+def test_explicit_state_steps_as_step_does_resets_included() -> None:
+    net = model().eval()
+    y = torch.linspace(3.0, 103.0, 30)
+    explicit = ExplicitStateStep(net, y).eval()
+    batch = window()
+    state = explicit.initial_state(B).tensors()
+    net.reset(torch.ones(B, dtype=torch.bool))
+    resets = [torch.tensor([True, True]), torch.tensor([False, False]), torch.tensor([False, True])]
+    with torch.inference_mode():
+        for f in range(F):
+            inputs = {**frame(batch, f), "reset": resets[f]}
+            expected = net.step(inputs)
+            points, logits, lanes, *state = explicit(*(inputs[k] for k in ("images", "K", "T_lane_cam", "T_world_lane", "reset")), *state)
+            torch.testing.assert_close(points, expected["points"][-1], atol=1e-5, rtol=0)
+            torch.testing.assert_close(logits, expected["logits"][-1], atol=1e-5, rtol=0)
+            torch.testing.assert_close(lanes, net.decode(expected, y), atol=1e-5, rtol=0)
+    assert state[3].tolist() == [[True, True], [True, False]]  # stream 1 was reset at the last frame: one slot since
+
+
+def test_a_queue_state_loads_back_as_it_was() -> None:
+    queue = MemoryQueue(num_frames=2, num_lines=1)
+    embeddings, points = torch.randn(1, 3, 4, 8), torch.randn(1, 3, 4, 4)
+    queue.push(embeddings, points, torch.tensor([[0.1, 0.9, 0.5]]), torch.eye(4, dtype=torch.float64)[None])
+    other = MemoryQueue(num_frames=2, num_lines=1)
+    other.load(queue.state())
+    assert torch.equal(other.read(torch.eye(4, dtype=torch.float64)[None]).embeddings,
+                       queue.read(torch.eye(4, dtype=torch.float64)[None]).embeddings)  # fmt: skip
+    assert torch.equal(queue.state().embeddings[0, 0, 0], embeddings[0, 1])  # the most confident line, newest slot
