@@ -102,6 +102,7 @@ def validate(cfg: IngestConfig) -> IngestConfig:
     ratios = {name: getattr(cfg.split, name) for name in ("train", "val", "test")}
     if any(value < 0 for value in ratios.values()) or abs(sum(ratios.values()) - 1) > 1e-6:
         raise ConfigError(f"split ratios {ratios} must be >= 0 and sum to 1")
+    validate_autolabel(cfg.autolabel)
     return cfg
 
 
@@ -118,8 +119,6 @@ def check_reading(cfg: LogReading) -> None:
         raise ConfigError(f"clips.target_fps={cfg.clips.target_fps} keeps frames further apart than "
                           f"clips.gap_s={cfg.clips.gap_s}: every frame would be its own clip")
     check_names(cfg.topics, cfg.frames)
-    validate_autolabel(cfg.autolabel)
-    return cfg
 
 
 SCHEMA_NAME = "ingest_schema"  # the first entry of conf/ingest.yaml's defaults

@@ -19,7 +19,7 @@ import torch
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
-from ingest_helpers import ingest_into, read_log, write_log
+from ingest_helpers import START_NS, ingest_into, read_log, write_log
 from mcap_output import Record, as_foxglove, read_mcap
 
 from lanelab.experiment.evaluate import evaluate_checkpoint
@@ -32,7 +32,7 @@ from log_predict.config import load_predict_config
 ROOT = Path(__file__).resolve().parents[2]
 IMAGE, CALIBRATION = "/camera/front/image", "/camera/front/camera_info"
 LANES, SCENE, ANNOTATIONS = "/lanes/predicted", "/lanes/predicted/scene", "/lanes/predicted/annotations"
-GAP = (800_000_000, 1_300_000_000)  # ns: the images of this span are cut out of the log, a 0.7 s gap
+GAP = (START_NS + 800_000_000, START_NS + 1_300_000_000)  # ns: the images of this span are cut out, a 0.7 s gap
 
 
 def image_stamp(record: Record) -> int:
