@@ -16,9 +16,8 @@ import sys
 
 import hydra
 from omegaconf import DictConfig
-from omegaconf.errors import MissingMandatoryValue
 
-from lanelab.config_checks import ConfigError, register_schema, typed
+from lanelab.config_checks import ConfigError, options_or_exit, register_schema
 from log_predict.config import SCHEMA_NAME, PredictConfig, validate
 
 register_schema(SCHEMA_NAME, PredictConfig)
@@ -44,14 +43,7 @@ def run(cfg: PredictConfig) -> int:
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="predict")
 def _run(cfg: DictConfig) -> None:
-    try:
-        options = validate(typed(cfg, PredictConfig))
-    except MissingMandatoryValue as err:
-        print(f"{NAME}: missing option {err.full_key}=...", file=sys.stderr)
-        sys.exit(2)
-    except ConfigError as err:
-        print(f"{NAME}: bad option: {err}", file=sys.stderr)
-        sys.exit(2)
+    options = options_or_exit(NAME, cfg, PredictConfig, validate)
     try:
         status = run(options)
     except KeyboardInterrupt:

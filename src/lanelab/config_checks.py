@@ -21,7 +21,7 @@ from hydra import compose, initialize_config_module
 from hydra.core.config_store import ConfigStore
 from hydra.errors import HydraException, MissingConfigException, OverrideParseException
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
+from omegaconf.errors import ConfigKeyError, MissingMandatoryValue, OmegaConfBaseException
 
 Config = TypeVar("Config")
 
@@ -56,6 +56,18 @@ def bad_options_exit(tool: str) -> Iterator[None]:
         _exit_bad_option(tool, str(err))
     except HydraException as err:
         _exit_bad_option(tool, hydra_error_line(err))
+
+
+def options_or_exit(tool: str, cfg: DictConfig, schema: type[Config], validate: Callable[[Config], Config]) -> Config:
+    """cfg typed by schema and checked by validate; a mandatory option left out or a bad value
+    ends the tool with one line naming the key and exit status 2."""
+    try:
+        return validate(typed(cfg, schema))
+    except MissingMandatoryValue as err:
+        print(f"{tool}: missing option {err.full_key}=...", file=sys.stderr)
+        sys.exit(BAD_OPTION_STATUS)
+    except ConfigError as err:
+        _exit_bad_option(tool, str(err))
 
 
 def _exit_bad_option(tool: str, message: str) -> None:

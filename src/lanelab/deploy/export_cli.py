@@ -15,9 +15,8 @@ import sys
 
 import hydra
 from omegaconf import DictConfig
-from omegaconf.errors import MissingMandatoryValue
 
-from lanelab.config_checks import ConfigError, register_schema, typed
+from lanelab.config_checks import ConfigError, options_or_exit, register_schema
 from lanelab.deploy.config import SCHEMA_NAME, ExportConfig, validate
 
 register_schema(SCHEMA_NAME, ExportConfig)
@@ -54,14 +53,7 @@ def run(cfg: ExportConfig) -> int:
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="export")
 def _run(cfg: DictConfig) -> None:
-    try:
-        options = validate(typed(cfg, ExportConfig))
-    except MissingMandatoryValue as err:
-        print(f"{NAME}: missing option {err.full_key}=...", file=sys.stderr)
-        sys.exit(2)
-    except ConfigError as err:
-        print(f"{NAME}: bad option: {err}", file=sys.stderr)
-        sys.exit(2)
+    options = options_or_exit(NAME, cfg, ExportConfig, validate)
     sys.exit(run(options))
 
 
