@@ -73,7 +73,8 @@ def main() -> None:
         return
     start = time.monotonic()
 
-    base = load_train_config(["experiment=demo", *overrides, "paths.output_dir=."])
+    # With the first model, so that overrides of its own keys (model.criterion...) compose.
+    base = load_train_config(["experiment=demo", f"model={args.models[0]}", *overrides, "paths.output_dir=."])
     stores = Path(base.demo.out) / "clips_train", Path(base.demo.out) / "clips_test"
     if not all((store / "manifest.json").exists() for store in stores):
         stores = prepare_stores(base.demo, Path(base.demo.out), start)
