@@ -1,6 +1,7 @@
 """``lanelab-demo``: the main job end to end on the embedded default, synthetic drives.
 
     lanelab-demo [key=value ...]        # Hydra overrides of experiment=demo, e.g. demo.out=DIR trainer.max_steps=300
+    lanelab-demo experiment=demo_bi2lane  # the same for Bi²Lane and its single-frame baseline
     lanelab-demo --help
 
 1. ``lanelab-synth`` writes the training drives and the held-out drives (fog, dense traffic);
@@ -59,8 +60,8 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def demo(arguments: list[str]) -> None:
-    """Run the demo with these overrides of experiment=demo (see the module)."""
-    overrides = ["experiment=demo", *arguments]
+    """Run the demo with these overrides of experiment=demo, or of the preset they name (see the module)."""
+    overrides = arguments if any(a.startswith("experiment=") for a in arguments) else ["experiment=demo", *arguments]
     base = load_train_config([*overrides, "paths.output_dir=."])
     demo = base.demo
     out = Path(demo.out)
