@@ -28,6 +28,14 @@ import torch
 from torch import Tensor
 
 from lanelab.geometry import sampling_matrix
+from lanelab.models.ranking import stable_topk
+
+# Metres per candidate position by which PNA settles near-ties the same way on every backend
+# (models.ranking): on near-parallel lines a line's points before and after a query lie equally far
+# from its normal plane, up to the lines' tilt (measured 1e-4 m on a trained model); its M points
+# lie 5-10 m apart, so a 1 cm step changes no real choice.
+PNA_TIE_MARGIN_M = 1e-2
+
 
 
 @dataclass
@@ -79,7 +87,7 @@ def parallel_neighbours(points: Tensor, num_neighbors: int = 2) -> Tensor:
     to the normal plane of query (i, m), nearest first (j = i included; callers mask it)."""
     offsets = normal_plane_offsets(points, points).abs_()
     k = min(num_neighbors, points.shape[-2])
-    return offsets.topk(k, dim=-1, largest=False).indices
+    return stable_topk(offsets, k, margin=PNA_TIE_MARGIN_M)
 
 
 def temporal_neighbours(
