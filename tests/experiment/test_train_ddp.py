@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+from hydra.utils import instantiate
 from tiny_store import tiny_overrides
 
 from lanelab.experiment.config import load_train_config
@@ -35,6 +37,23 @@ def test_two_processes_match_one(tiny_store: Path, tmp_path: Path) -> None:
         a, b = ddp[f"test/{name}"], single[f"test/{name}"]
         assert (math.isnan(a) and math.isnan(b)) or math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-9), name
 
+
+
+@pytest.mark.parametrize("overrides", [
+    ["model=sparselanestp"], ["model=sparselanestp", "sampler=stream", "data.num_frames=1"],
+    ["model=sparselanestp", "model.net.use_tca=false"], ["model=latr_baseline"],
+    ["model=bi2lane"], ["model=bi2lane", "model.net.direction=forward", "model.net.aggregation=line"],
+    ["model=bi2lane_baseline"],
+], ids=" ".join)  # fmt: skip
+def test_every_parameter_gets_a_gradient_on_a_first_step(tiny_store: Path, tmp_path: Path, overrides: list[str]) -> None:
+    # What lets trainer/ddp*.yaml run DDP with find_unused_parameters=false: a parameter without
+    # a gradient (an empty memory at a stream's start, a head the baseline skips) would stall it.
+    cfg = load_train_config(tiny_overrides(tiny_store, tmp_path, *overrides))
+    datamodule, module = instantiate(cfg.data), instantiate(cfg.model)
+    datamodule.setup("fit")
+    module.train()
+    module.training_step(next(iter(datamodule.train_dataloader())), 0).backward()
+    assert [name for name, p in module.named_parameters() if p.requires_grad and p.grad is None] == []
 
 
 def test_a_non_finite_loss_on_one_rank_stops_both(tiny_store: Path, tmp_path: Path) -> None:

@@ -53,7 +53,8 @@ def build(net: dict[str, Any], **changes: Any) -> Bi2Lane:
     the proposals) made small and random as after some training, in eval mode."""
     torch.manual_seed(0)
     model = Bi2Lane(**{**net, **changes})
-    for mlp in (model.x_head, model.z_head, *[refinement.offsets for refinement in model.refinement]):
+    offsets = [refinement.offsets for refinement in model.refinement if refinement.offsets is not None]
+    for mlp in (model.x_head, model.z_head, *offsets):
         torch.nn.init.normal_(mlp[-1].weight, std=0.01)
     return model.eval()
 

@@ -118,7 +118,8 @@ class Bi2Lane(nn.Module):
         self.directions = ("forward", "reverse") if direction == "bidirectional" else (direction,)
         # One refinement and one aggregation per direction, in the order of self.directions.
         self.refinement = nn.ModuleList(
-            TemporalRefinement(embed_dim, num_points, head_hidden_dim, head_hidden_layers, temporal_alignment)
+            TemporalRefinement(embed_dim, num_points, head_hidden_dim, head_hidden_layers, temporal_alignment,
+                               steps=num_history_frames > 0)
             for _ in self.directions
         )
         self.aggregation = nn.ModuleList(

@@ -49,14 +49,18 @@ class Refined(NamedTuple):
 class TemporalRefinement(nn.Module):
     """One direction of BDTR. embed_dim C of the sampled features; num_points M; hidden_dim and
     num_hidden: the offset head O's MLP over the M x C lane feature (Anchor3DLane's regression
-    branch layout); alignment: move anchors with the ego motion between frames (Table VII)."""
+    branch layout); alignment: move anchors with the ego motion between frames (Table VII);
+    steps: whether any frame is visited before the current one (False for the single-frame
+    baseline, which then has no offset head: a parameter it never uses would stall DDP)."""
 
-    def __init__(self, embed_dim: int, num_points: int, hidden_dim: int, num_hidden: int, alignment: bool) -> None:
+    def __init__(
+        self, embed_dim: int, num_points: int, hidden_dim: int, num_hidden: int, alignment: bool, steps: bool = True
+    ) -> None:
         super().__init__()
-        self.offsets = mlp(num_points * embed_dim, hidden_dim, 2 * num_points, num_hidden)
-        # Offsets start at zero: before training the anchors pass from frame to frame unchanged.
-        nn.init.zeros_(self.offsets[-1].weight)
-        nn.init.zeros_(self.offsets[-1].bias)
+        self.offsets = mlp(num_points * embed_dim, hidden_dim, 2 * num_points, num_hidden) if steps else None
+        if self.offsets is not None:  # offsets start at zero: before training the anchors pass frames unchanged
+            nn.init.zeros_(self.offsets[-1].weight)
+            nn.init.zeros_(self.offsets[-1].bias)
         self.alignment = alignment
 
     def forward(
@@ -78,6 +82,8 @@ class TemporalRefinement(nn.Module):
         # Metres in at least float32: bf16 steps are half a metre at 100 m.
         points = anchors.to(torch.promote_types(features.dtype, torch.float32)).expand(B, *anchors.shape)
         lanes, sampled_at, detections, detection_valid = [], [], [], []
+        if len(order) > 1 and self.offsets is None:
+            raise ValueError("this refinement was built without steps: it visits the current frame only")
         for step, frame in enumerate(order):
             grid = sampling_grid(points, K[:, frame], T_lane_cam[:, frame], image_size)
             lane = sample_features(features[:, frame], grid)  # (B, A, M, C)
