@@ -56,6 +56,8 @@ def train(cfg: DictConfig) -> dict[str, float]:
 and testing (also written to ``metrics.json``)."""
     start = time.monotonic()
     log.info("lanelab-train: run folder %s", cfg.paths.output_dir)
+    # Before the loggers start: W&B looks for the code's git repository from it.
+    Path(cfg.paths.output_dir).mkdir(parents=True, exist_ok=True)
     run = build_run(cfg)
     trainer, module, datamodule = run.trainer, run.module, run.datamodule
     weights = cfg.ckpt_path
