@@ -37,7 +37,6 @@ from lanelab.models.ranking import stable_topk
 PNA_TIE_MARGIN_M = 1e-2
 
 
-
 @dataclass
 class Neighbours:
     """The active keys of every query; B batch, N lines, M points, k = num_neighbors,
