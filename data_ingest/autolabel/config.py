@@ -25,6 +25,7 @@ class AutolabelConfig:
     max_point_std_m: float = MISSING
     node_spacing_m: float = MISSING
     gate_m: float = MISSING
+    category_penalty_m: float = MISSING
     confirm_hits: int = MISSING
     max_misses: int = MISSING
     merge_m: float = MISSING
@@ -49,7 +50,7 @@ def validate_autolabel(cfg: AutolabelConfig) -> AutolabelConfig:
     for key in ("range_m", "min_reach_m", "pixel_noise_px", "max_point_std_m", "node_spacing_m", "gate_m", "merge_m",
                 "max_std_m", "max_speed_mps", "confirm_hits", "max_misses"):
         check_positive(f"autolabel.{key}", getattr(cfg, key))
-    for key in ("min_length_m", "process_noise_m", "curvature_noise", "min_travel_m", "pictures"):
+    for key in ("min_length_m", "process_noise_m", "curvature_noise", "min_travel_m", "pictures", "category_penalty_m"):
         if getattr(cfg, key) < 0:
             raise ConfigError(f"autolabel.{key}={getattr(cfg, key)!r} must be >= 0")
     near_far = list(cfg.projection_range_m)

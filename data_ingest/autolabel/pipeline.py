@@ -85,7 +85,8 @@ def auto_label(drive: DriveFrames, cfg: AutolabelConfig) -> AutoLabels:
     T_world_cam = drive.T_world_lane @ drive.T_lane_cam
     near, far = cfg.projection_range_m
     spacing = cfg.node_spacing_m
-    tracker = LineTracker(spacing, cfg.gate_m, cfg.confirm_hits, cfg.max_misses, cfg.merge_m, cfg.process_noise_m)
+    tracker = LineTracker(spacing, cfg.gate_m, cfg.confirm_hits, cfg.max_misses, cfg.merge_m, cfg.process_noise_m,
+                          cfg.category_penalty_m)
     for t in range(len(drive.stamps)):
         observations = project_detections(surface, t, drive.detections[t], drive.K[t], drive.T_world_lane[t],
                                           drive.T_lane_cam[t], (near, far), cfg.pixel_noise_px, cfg.max_point_std_m,

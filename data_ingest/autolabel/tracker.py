@@ -10,8 +10,10 @@ is a model, a node may settle); its measurements are the observations of
 
 1. **association**: an observation's cost to a track is the mean lateral distance over the
    nodes both cover, weighted by how well both know each node; with too little overlap, the distance to the track's end extended along
-   its last direction (a line seen further on, or after a gap). Observations and tracks are
-   paired one-to-one at least total cost (Hungarian), within ``gate_m``;
+   its last direction (a line seen further on, or after a gap); plus ``category_penalty_m``
+   when the detection's category is not the one the track's detections voted for (a curb a
+   metre beyond an edge line is seen from afar, where a detection's bias is a metre too).
+   Observations and tracks are paired one-to-one at least total cost (Hungarian), within ``gate_m``;
 2. **update**: each node of a paired observation updates the track's node (the Kalman gain
    weighs it against what the track knows); nodes beyond the track extend it;
 3. **birth**: an unpaired observation starts a tentative track; a tentative track becomes a
@@ -145,9 +147,9 @@ class LineTracker:
     """Tracks lane lines through the observations of a drive's frames, in time order."""
 
     def __init__(self, node_spacing_m: float, gate_m: float, confirm_hits: int, max_misses: int, merge_m: float,
-                 process_noise_m: float) -> None:
+                 process_noise_m: float, category_penalty_m: float) -> None:
         self.node_spacing_m = node_spacing_m
-        self.gate_m, self.merge_m = gate_m, merge_m
+        self.gate_m, self.merge_m, self.category_penalty_m = gate_m, merge_m, category_penalty_m
         self.confirm_hits, self.max_misses = confirm_hits, max_misses
         self.process_noise_m = process_noise_m
         self.tracks: list[Track] = []
@@ -220,7 +222,11 @@ class LineTracker:
 
     def _cost(self, observation: Observation, track: Track) -> float:
         """Mean lateral distance of the observation to the track (over shared nodes, else to the
-        track's extension beyond its end); _FAR when they cannot be compared."""
+        track's extension beyond its end), plus the category penalty; _FAR when they cannot be compared."""
+        penalty = self.category_penalty_m if observation.category != track.category else 0.0
+        return self._distance(observation, track) + penalty
+
+    def _distance(self, observation: Observation, track: Track) -> float:
         nodes, d, var = track.observed()
         shared, at_obs, at_track = np.intersect1d(observation.nodes, nodes, return_indices=True)
         if len(shared) >= MIN_OVERLAP_NODES:

@@ -2,9 +2,10 @@
 
 Drive 0 of seed 7 (highway, fog, 3 lanes, 30 m/s), 12 s, with the generator's noisy 2D
 detections and occluder masks, auto-labeled at the default settings of conf/ingest.yaml
-(the images are not rendered: the auto-labeler reads none). Measured when written, on its 66
-frames whose labels reach 200 m: F1 89.2 %, x error 0.145 m at 0-40 m and 0.162 m at
-40-100 m, z error 0.003 m at 0-40 m, Vis-IoU 89.0 %; the thresholds leave a little room.
+(the images are not rendered: the auto-labeler reads none). Measured on its 66 frames whose
+labels reach 200 m: F1 90.4 %, x error 0.103 m at 0-40 m and 0.130 m at 40-100 m, z error
+0.002 m at 0-40 m, Vis-IoU 88.0 % (before the tracker's category penalty: F1 89.2 %, x error
+0.145 / 0.162 m, Vis-IoU 89.0 %); the thresholds leave a little room.
 """
 
 from __future__ import annotations
@@ -37,9 +38,9 @@ def test_auto_labels_of_a_fixed_drive_match_its_true_lanes():
     scored = summarize(score_frame(frame.lanes, lanes, metric_config())
                        for frame, lanes, ok in zip(frames, labels.lanes, labels.labeled) if ok)
     assert scored["num_frames"] >= 50  # the frames whose labels reach 200 m
-    assert scored["f1"] >= 0.87
-    assert scored["x_error_close"] <= 0.17 and scored["z_error_close"] <= 0.01  # 0-40 m
-    assert scored["x_error_far"] <= 0.19  # 40-100 m
+    assert scored["f1"] >= 0.89
+    assert scored["x_error_close"] <= 0.12 and scored["z_error_close"] <= 0.01  # 0-40 m
+    assert scored["x_error_far"] <= 0.15  # 40-100 m
     assert scored["vis_iou"] >= 0.85
     # Stable ids: a track id names one line in every frame it labels.
     for track_id in {lane.track_id for lanes in labels.lanes for lane in lanes}:

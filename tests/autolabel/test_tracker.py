@@ -11,9 +11,9 @@ STEP = 2  # nodes (metres) the ego advances per frame
 NEAR, FAR = 5, 35  # nodes ahead of the ego that a frame's detections cover
 
 
-def tracker() -> LineTracker:
+def tracker(category_penalty_m: float = 1.0) -> LineTracker:
     return LineTracker(node_spacing_m=1.0, gate_m=1.5, confirm_hits=3, max_misses=5, merge_m=0.4,
-                       process_noise_m=0.01)
+                       process_noise_m=0.01, category_penalty_m=category_penalty_m)
 
 
 def seen(frame: int, offset: float, rng: np.random.Generator, end: int | None = None, category: int = 1,
@@ -89,3 +89,21 @@ def test_a_line_missed_for_a_few_frames_keeps_its_id_and_its_gap_is_filled():
                      passed_node=t * STEP)
     (line,) = tracked.lines(0.003, 10, 0.5)
     assert line.track_id == 0 and np.array_equal(line.nodes, np.arange(NEAR, 79 * STEP + FAR + 1))
+
+
+def test_a_detection_joins_the_track_of_its_category_over_a_nearer_one_of_another():
+    # A curb a metre beyond a yellow line, both tracked; then the curb seen from afar, its
+    # detection biased 0.6 m towards the line: nearer the line's track, but a curb.
+    def curb_track_after(category_penalty_m: float) -> list[float]:
+        rng, tracked = np.random.default_rng(0), tracker(category_penalty_m)
+        for t in range(10):
+            tracked.step(t, [seen(t, -6.9, rng, category=8), seen(t, -7.9, rng, category=20)], lambda track: True,
+                         passed_node=t * STEP)
+        nodes = np.arange(10 * STEP + NEAR, 10 * STEP + FAR + 1)
+        tracked.step(10, [Observation(10, nodes, np.full(len(nodes), -7.3), np.full(len(nodes), 0.05), 20, 0.9)],
+                     lambda track: True, passed_node=10 * STEP)
+        (curb,) = [track for track in tracked.tracks if track.category == 20]
+        return [curb.hits, curb.misses]
+
+    assert curb_track_after(category_penalty_m=1.0) == [11, 0]
+    assert curb_track_after(category_penalty_m=0.0) == [10, 1]  # without: the yellow line's track took it
