@@ -3,9 +3,10 @@
 Drive 0 of seed 7 (highway, fog, 3 lanes, 30 m/s), 12 s, with the generator's noisy 2D
 detections and occluder masks, auto-labeled at the default settings of conf/ingest.yaml
 (the images are not rendered: the auto-labeler reads none). Measured on its 66 frames whose
-labels reach 200 m: F1 90.4 %, x error 0.103 m at 0-40 m and 0.130 m at 40-100 m, z error
-0.002 m at 0-40 m, Vis-IoU 88.0 % (before the tracker's category penalty: F1 89.2 %, x error
-0.145 / 0.162 m, Vis-IoU 89.0 %); the thresholds leave a little room.
+labels reach 200 m: F1 87.0 %, x error 0.085 m at 0-40 m and 0.126 m at 40-100 m, z error
+0.002 m at 0-40 m, Vis-IoU 86.9 % (before the tracker's category penalty: F1 89.2 %, x error
+0.145 / 0.162 m, Vis-IoU 89.0 %; over six 20 s drives the penalty raised the mean F1 from 73.4
+to 75.4 % and cut the x error 0-40 m from 0.125 to 0.087 m); the thresholds leave a little room.
 """
 
 from __future__ import annotations
@@ -38,9 +39,9 @@ def test_auto_labels_of_a_fixed_drive_match_its_true_lanes():
     scored = summarize(score_frame(frame.lanes, lanes, metric_config())
                        for frame, lanes, ok in zip(frames, labels.lanes, labels.labeled) if ok)
     assert scored["num_frames"] >= 50  # the frames whose labels reach 200 m
-    assert scored["f1"] >= 0.89
-    assert scored["x_error_close"] <= 0.12 and scored["z_error_close"] <= 0.01  # 0-40 m
-    assert scored["x_error_far"] <= 0.15  # 40-100 m
+    assert scored["f1"] >= 0.85
+    assert scored["x_error_close"] <= 0.10 and scored["z_error_close"] <= 0.01  # 0-40 m
+    assert scored["x_error_far"] <= 0.14  # 40-100 m
     assert scored["vis_iou"] >= 0.85
     # Stable ids: a track id names one line in every frame it labels.
     for track_id in {lane.track_id for lanes in labels.lanes for lane in lanes}:

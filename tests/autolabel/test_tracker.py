@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from data_ingest.autolabel.projection import Observation
-from data_ingest.autolabel.tracker import LineTracker
+from data_ingest.autolabel.tracker import LineTracker, line_kind
 
 STEP = 2  # nodes (metres) the ego advances per frame
 NEAR, FAR = 5, 35  # nodes ahead of the ego that a frame's detections cover
@@ -107,3 +107,10 @@ def test_a_detection_joins_the_track_of_its_category_over_a_nearer_one_of_anothe
 
     assert curb_track_after(category_penalty_m=1.0) == [11, 0]
     assert curb_track_after(category_penalty_m=0.0) == [10, 1]  # without: the yellow line's track took it
+
+
+def test_dashed_and_solid_of_one_colour_are_one_kind_of_line_and_curbs_another():
+    # A no-passing zone turns a dashed centre line solid: still the same line.
+    assert line_kind(1) == line_kind(2) == line_kind(4) == "white"  # white dash, solid, double solid
+    assert line_kind(7) == line_kind(8) == line_kind(10) == "yellow"
+    assert line_kind(20) == line_kind(21) == "curb"
