@@ -11,9 +11,9 @@ is a model, a node may settle); its measurements are the observations of
 1. **association**: an observation's cost to a track is the mean lateral distance over the
    nodes both cover, weighted by how well both know each node; with too little overlap, the distance to the track's end extended along
    its last direction (a line seen further on, or after a gap); plus ``category_penalty_m``
-   when the detection is of another kind (:func:`line_kind`) than the category the track's
-   detections voted for (a curb a metre beyond an edge line is seen from afar, where a
-   detection's bias is a metre too).
+   when the detection is known to be another kind of line (:func:`different_kinds`) than the
+   category the track's detections voted for (a curb a metre beyond an edge line is seen from
+   afar, where a detection's bias is a metre too).
    Observations and tracks are paired one-to-one at least total cost (Hungarian), within ``gate_m``;
 2. **update**: each node of a paired observation updates the track's node (the Kalman gain
    weighs it against what the track knows); nodes beyond the track extend it;
@@ -49,15 +49,24 @@ EXTEND_FIT_NODES = 10  # the track's last nodes that give its direction beyond i
 MAX_EXTEND_M = 25.0  # an observation may continue a track after a gap this long
 TENTATIVE_MISSES = 2
 _FAR = 1e9
+UNKNOWN_CATEGORY = 0
 
 
-def line_kind(category: int) -> str:
+def line_kind(category: int) -> str | None:
     """What a line is made of, which stays the same along it: a curbside, white paint or yellow
-    paint (OpenLane ids). Dashed and solid alternate along one line (a no-passing zone), so they
-    are one kind."""
+    paint (OpenLane ids); None for "unknown" (0: a detector that does not classify). Dashed and
+    solid alternate along one line (a no-passing zone), so they are one kind."""
+    if category == UNKNOWN_CATEGORY:
+        return None
     if category in (LEFT_CURBSIDE, RIGHT_CURBSIDE):
         return "curb"
     return "yellow" if 7 <= category <= 12 else "white"
+
+
+def different_kinds(a: int, b: int) -> bool:
+    """Whether categories a and b are known to be different kinds of line."""
+    kinds = line_kind(a), line_kind(b)
+    return None not in kinds and kinds[0] != kinds[1]
 
 
 @dataclass
@@ -233,7 +242,7 @@ class LineTracker:
     def _cost(self, observation: Observation, track: Track) -> float:
         """Mean lateral distance of the observation to the track (over shared nodes, else to the
         track's extension beyond its end), plus the category penalty; _FAR when they cannot be compared."""
-        penalty = self.category_penalty_m if line_kind(observation.category) != line_kind(track.category) else 0.0
+        penalty = self.category_penalty_m if different_kinds(observation.category, track.category) else 0.0
         return self._distance(observation, track) + penalty
 
     def _distance(self, observation: Observation, track: Track) -> float:

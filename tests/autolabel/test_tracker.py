@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from data_ingest.autolabel.projection import Observation
-from data_ingest.autolabel.tracker import LineTracker, line_kind
+from data_ingest.autolabel.tracker import LineTracker, different_kinds, line_kind
 
 STEP = 2  # nodes (metres) the ego advances per frame
 NEAR, FAR = 5, 35  # nodes ahead of the ego that a frame's detections cover
@@ -114,3 +114,5 @@ def test_dashed_and_solid_of_one_colour_are_one_kind_of_line_and_curbs_another()
     assert line_kind(1) == line_kind(2) == line_kind(4) == "white"  # white dash, solid, double solid
     assert line_kind(7) == line_kind(8) == line_kind(10) == "yellow"
     assert line_kind(20) == line_kind(21) == "curb"
+    assert different_kinds(20, 2) and different_kinds(8, 2) and not different_kinds(1, 2)
+    assert not different_kinds(0, 20) and not different_kinds(8, 0)  # a detector that does not classify
