@@ -33,7 +33,7 @@ import torch
 from bench_sparselanestp import CONFIGS
 
 from lanelab.deploy.export import ALL_INPUTS, write_onnx, example_inputs, synthetic_clip
-from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep
+from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 Y = torch.linspace(3.0, 103.0, 100)  # the default data.y_grid
@@ -45,6 +45,8 @@ def runners(config: dict, device: torch.device, folder: Path) -> tuple[dict[str,
     net = SparseLaneSTP(**config["model"]).to(device).eval()
     dense = SparseLaneSTP(**{**config["model"], "attention": "dense"}).to(device).eval()
     dense.load_state_dict(net.state_dict())
+    settle_ties(net)  # the eager variants pick the keys the exported graphs pick
+    settle_ties(dense)
     step = ExplicitStateStep(net, Y.to(device)).eval()
     example = tuple(t.to(device) for t in example_inputs(step, config["image_size"], 1))
     seconds = {}

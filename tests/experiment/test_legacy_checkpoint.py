@@ -8,11 +8,7 @@ with the old keys (criterion, mask_criterion, lr, warmup_steps, num_pictures, ..
 checkpoint=... store=... split=test`` reported for it at that commit, except the far x / z
 errors: since the OpenLane round trip (issue 16) the evaluation's ground truth is the store's
 labels as stored, no longer their resampling on data.y_grid, which moved them by 0.3 mm and
-3.5 µm (were 1.0551151755269494 and 0.0011331096395704265); and the errors again since PNA
-settles near-tied neighbours for the earlier point (models.ranking, stop 24): this two-step
-model's lines are straight and parallel, so its ties are exact and were settled otherwise
-(x close / far were 0.8544904265413719 / 1.055409502601451, z 0.0013740737127443184 /
-0.0011366280683371434, at most 3 % apart). Every count and rate is as it was.
+3.5 µm (were 1.0551151755269494 and 0.0011331096395704265); every count and rate is as it was.
 """
 
 from __future__ import annotations
@@ -32,8 +28,8 @@ from lanelab.models.losses import SparseLaneSTPCriterion
 LEGACY = Path(__file__).parent / "data" / "legacy_sparselanestp.ckpt"
 OLD_SCORES = {
     "f1": 0.33333333333333337, "recall": 0.2777777777777778, "precision": 0.4166666666666667,
-    "category_accuracy": 0.0, "x_error_close": 0.85353093827713, "x_error_far": 1.0532721228666098,
-    "z_error_close": 0.0013713331127122065, "z_error_far": 0.0011717074062996327, "num_frames": 6,
+    "category_accuracy": 0.0, "x_error_close": 0.8544904265413719, "x_error_far": 1.055409502601451,
+    "z_error_close": 0.0013740737127443184, "z_error_far": 0.0011366280683371434, "num_frames": 6,
     "gt_lanes": 18, "pred_lanes": 12, "matched": 6, "recall_tp": 5, "precision_tp": 5, "category_correct": 0,
 }  # fmt: skip
 

@@ -3,12 +3,13 @@
 import torch
 from test_sparselanestp import B, F, frame, model, window
 
-from lanelab.models.explicit_state import ExplicitStateStep
+from lanelab.models.explicit_state import ExplicitStateStep, settle_ties
 from lanelab.models.memory_queue import MemoryQueue
 
 
 def test_explicit_state_steps_as_step_does_resets_included() -> None:
     net = model().eval()
+    settle_ties(net)  # as the graph does
     y = torch.linspace(3.0, 103.0, 30)
     explicit = ExplicitStateStep(net, y).eval()
     batch = window()

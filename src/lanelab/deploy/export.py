@@ -37,7 +37,7 @@ from lanelab.atomic_file import atomic_output
 from lanelab.deploy.trained import TrainedDetector
 from lanelab.geometry import make_transform
 from lanelab.lanes import LANE_CATEGORY_IDS
-from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, STATE_NAMES, ExplicitStateStep
+from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, STATE_NAMES, ExplicitStateStep, settle_ties
 from lanelab.models.memory_queue import MemoryQueue
 from lanelab.models.sparselanestp import SparseLaneSTP
 
@@ -93,6 +93,7 @@ def export_checkpoint(trained: TrainedDetector, fmt: str, out: str | Path, batch
     if not isinstance(net, SparseLaneSTP):
         raise ExportError(f"lanelab-export exports SparseLaneSTP; this checkpoint's detector is {type(net).__name__}")
     net, y = net.cpu().eval(), trained.y.cpu()
+    settle_ties(net)  # the check's step() picks the keys the graph picks
     step = ExplicitStateStep(net, y).eval()
     image_size = trained.resize.height, trained.resize.width
     differences: dict[str, float] = {}

@@ -26,7 +26,9 @@ y grid ``y``; T memory frames of N_mem lines of C channels):
 
 The spatio-temporal attention runs its dense implementation, the sparse one's reference: the
 same keys and the same result (:mod:`lanelab.models.spatio_temporal_attention`); the sparse
-one sizes its key band from the data (a Python int), which a static graph cannot hold.
+one sizes its key band from the data (a Python int), which a static graph cannot hold. Its
+parallel neighbours settle near-ties for the earlier point (:func:`settle_ties`), so that every
+backend picks the same keys; a module the graph is checked against must settle them alike.
 """
 
 from __future__ import annotations
@@ -39,19 +41,30 @@ from torch import Tensor, nn
 from lanelab.models.memory_queue import MemoryQueue, QueueState
 from lanelab.models.sparselanestp import SparseLaneSTP
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
+from lanelab.models.sta_masks import PNA_TIE_MARGIN_M
 
 INPUT_NAMES = ("images", "K", "T_lane_cam", "T_world_lane", "reset")
 OUTPUT_NAMES = ("points", "logits", "lanes")
 STATE_NAMES = ("embeddings", "points", "poses", "valid")  # QueueState's fields, in its order
 
 
+def settle_ties(net: nn.Module, margin: float = PNA_TIE_MARGIN_M) -> None:
+    """Make every spatio-temporal attention of net settle near-tied parallel neighbours for the
+    earlier point, by ``margin`` metres per position (:mod:`lanelab.models.ranking`): what an
+    exported step and the module it is compared with must share."""
+    for module in net.modules():
+        if isinstance(module, SpatioTemporalAttention):
+            module.pna_tie_margin = margin
+
+
 class ExplicitStateStep(nn.Module):
-    """net: a SparseLaneSTP (copied; the copy's attention set to dense); y (S,): metres, where
-    ``lanes`` samples the lines."""
+    """net: a SparseLaneSTP (copied; the copy's attention set to dense, its ties settled); y (S,):
+    metres, where ``lanes`` samples the lines."""
 
     def __init__(self, net: SparseLaneSTP, y: Tensor) -> None:
         super().__init__()
         self.net = copy.deepcopy(net)
+        settle_ties(self.net)
         for module in self.net.modules():
             if isinstance(module, SpatioTemporalAttention) and module.impl == "sparse":
                 module.impl = "dense"

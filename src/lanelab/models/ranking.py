@@ -9,8 +9,10 @@ a tie for the earlier candidate by a margin far above that rounding noise and fa
 difference that matters. Rounding the values instead would not do: values near a rounding step
 flip as easily. No shift removes every flip (the tie only moves to where two candidates differ
 by the shift), so it is used where values rarely differ by that much. On SparseLaneSTP
-(benchmarks/RESULTS.md, "Exported streaming SparseLaneSTP") it helps PNA; shifting TCA's
-distances too made a young model's export flip, and the memory's scores gained nothing.
+(benchmarks/RESULTS.md, "Exported streaming SparseLaneSTP") it helps PNA in exported graphs;
+shifting TCA's distances too made a young model's export flip, and the memory's scores gained
+nothing. Training keeps the plain nearest: the demo's SparseLaneSTP trained with the shift
+scored 40.8 % on its held-out drives against 45.9 % (one seed).
 """
 
 from __future__ import annotations

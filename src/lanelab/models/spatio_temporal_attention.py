@@ -71,6 +71,7 @@ class SpatioTemporalAttention(nn.Module):
         self.num_heads, self.num_neighbors, self.m_tca = num_heads, num_neighbors, m_tca
         self.use_sla, self.use_pna, self.use_tca = use_sla, use_pna, use_tca
         self.dropout, self.impl = dropout, impl
+        self.pna_tie_margin = 0.0  # metres; set for export (models.explicit_state.settle_ties)
         self.q_proj = nn.Linear(embed_dim, embed_dim)
         self.k_proj = nn.Linear(embed_dim, embed_dim)
         self.v_proj = nn.Linear(embed_dim, embed_dim)
@@ -107,6 +108,7 @@ class SpatioTemporalAttention(nn.Module):
                     None if memory is None else memory.points,
                     None if memory is None else memory.valid,
                     line_mask, self.num_neighbors, self.m_tca, self.use_sla, self.use_pna, self.use_tca,
+                    self.pna_tie_margin,
                 )  # fmt: skip
             k_mem = v_mem = None
             if memory is not None:

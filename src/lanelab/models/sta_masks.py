@@ -30,10 +30,11 @@ from torch import Tensor
 from lanelab.geometry import sampling_matrix
 from lanelab.models.ranking import stable_topk
 
-# Metres per candidate position by which PNA settles near-ties the same way on every backend
-# (models.ranking): on near-parallel lines a line's points before and after a query lie equally far
-# from its normal plane, up to the lines' tilt (measured 1e-4 m on a trained model); its M points
-# lie 5-10 m apart, so a 1 cm step changes no real choice.
+# Metres per candidate position by which an exported PNA settles near-ties the same way on every
+# backend (models.ranking, models.explicit_state.settle_ties): on near-parallel lines a line's
+# points before and after a query lie equally far from its normal plane, up to the lines' tilt
+# (measured 1e-4 m on a trained model); its M points lie 5-10 m apart. Training keeps the plain
+# nearest (a model trained with the margin scored 5 points lower on the demo's held-out drives).
 PNA_TIE_MARGIN_M = 1e-2
 
 
@@ -81,12 +82,15 @@ def normal_plane_offsets(points: Tensor, others: Tensor) -> Tensor:
     return along.sub_((t * xyz).sum(-1)[..., None, None])
 
 
-def parallel_neighbours(points: Tensor, num_neighbors: int = 2) -> Tensor:
+def parallel_neighbours(points: Tensor, num_neighbors: int = 2, tie_margin: float = 0.0) -> Tensor:
     """Indices (B, N, M, N, k) of the k = min(num_neighbors, M) points of every line j nearest
-    to the normal plane of query (i, m), nearest first (j = i included; callers mask it)."""
+    to the normal plane of query (i, m), nearest first (j = i included; callers mask it);
+    tie_margin: metres per position that settle near-ties for the earlier point (models.ranking)."""
     offsets = normal_plane_offsets(points, points).abs_()
     k = min(num_neighbors, points.shape[-2])
-    return stable_topk(offsets, k, margin=PNA_TIE_MARGIN_M)
+    if tie_margin > 0:
+        return stable_topk(offsets, k, margin=tie_margin)
+    return offsets.topk(k, dim=-1, largest=False).indices
 
 
 def temporal_neighbours(
@@ -121,18 +125,20 @@ def find_neighbours(
     use_sla: bool = True,
     use_pna: bool = True,
     use_tca: bool = True,
+    pna_tie_margin: float = 0.0,
 ) -> Neighbours:
     """The active keys of every query of lines ``points`` (B, N, M, >=3) (metres).
 
     memory_points (B, K, >=3) / memory_valid (B, K): the propagated memory (None or K = 0: no
-    TCA); line_mask (B, N) bool: False for padded lines (None: all lines real).
+    TCA); line_mask (B, N) bool: False for padded lines (None: all lines real); pna_tie_margin:
+    see :func:`parallel_neighbours`.
     """
     B, N, M = points.shape[:3]
     if line_mask is None:
         line_mask = torch.ones(B, N, dtype=torch.bool, device=points.device)
     neighbours = Neighbours(line_valid=line_mask, use_sla=use_sla)
     if use_pna:
-        neighbours.pna_index = parallel_neighbours(points, num_neighbors)
+        neighbours.pna_index = parallel_neighbours(points, num_neighbors, pna_tie_margin)
         other_line = ~torch.eye(N, dtype=torch.bool, device=points.device)  # (i, j): j != i
         valid = other_line[None] & line_mask[:, None, :]  # (B, N_i, N_j)
         neighbours.pna_valid = valid[:, :, None, :, None].expand_as(neighbours.pna_index)
