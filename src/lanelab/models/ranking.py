@@ -21,10 +21,9 @@ import torch
 from torch import Tensor
 
 
-def stable_topk(values: Tensor, k: int, *, margin: float, largest: bool = False) -> Tensor:
-    """Indices (..., k) of the k smallest (largest) values (..., C) along the last axis, best
-    first, with candidate c's value moved by margin · c towards losing (float32 at least)."""
+def stable_topk(values: Tensor, k: int, *, margin: float) -> Tensor:
+    """Indices (..., k) of the k smallest values (..., C) along the last axis, smallest first,
+    with candidate c's value raised by margin · c (in float32 at least)."""
     values = values.to(torch.promote_types(values.dtype, torch.float32))
     position = torch.arange(values.shape[-1], device=values.device, dtype=values.dtype)
-    shifted = values - margin * position if largest else values + margin * position
-    return shifted.topk(k, dim=-1, largest=largest).indices
+    return (values + margin * position).topk(k, dim=-1, largest=False).indices
