@@ -41,7 +41,7 @@ from scipy.optimize import linear_sum_assignment
 
 from data_ingest.autolabel.line_smoother import smooth_line
 from data_ingest.autolabel.projection import Observation
-from lanelab.lanes import LEFT_CURBSIDE, NO_TRACK, RIGHT_CURBSIDE
+from lanelab.lanes import LANE_CATEGORY_NAMES, NO_TRACK
 
 MIN_OVERLAP_NODES = 3  # nodes an observation must share with a track to compare offsets there
 MERGE_OVERLAP_NODES = 5
@@ -49,18 +49,17 @@ EXTEND_FIT_NODES = 10  # the track's last nodes that give its direction beyond i
 MAX_EXTEND_M = 25.0  # an observation may continue a track after a gap this long
 TENTATIVE_MISSES = 2
 _FAR = 1e9
-UNKNOWN_CATEGORY = 0
 
 
 def line_kind(category: int) -> str | None:
     """What a line is made of, which stays the same along it: a curbside, white paint or yellow
-    paint (OpenLane ids); None for "unknown" (0: a detector that does not classify). Dashed and
-    solid alternate along one line (a no-passing zone), so they are one kind."""
-    if category == UNKNOWN_CATEGORY:
+    paint, read from the category's name (lanelab.lanes.LANE_CATEGORY_NAMES); None for "unknown"
+    (a detector that does not classify). Dashed and solid alternate along one line (a
+    no-passing zone), so they are one kind."""
+    name = LANE_CATEGORY_NAMES.get(category, "")
+    if name == "unknown":
         return None
-    if category in (LEFT_CURBSIDE, RIGHT_CURBSIDE):
-        return "curb"
-    return "yellow" if 7 <= category <= 12 else "white"
+    return "curb" if "curbside" in name else "yellow" if "yellow" in name else "white"
 
 
 def different_kinds(a: int, b: int) -> bool:
