@@ -16,7 +16,14 @@ from omegaconf import OmegaConf
 
 from lanelab.experiment.config import load_train_config
 from lanelab.geometry import make_transform
-from lanelab.models.bi2lane import Bi2Lane, TemporalRefinement, anchor_families, sample_features, sampling_grid
+from lanelab.models.bi2lane import (
+    Bi2Lane,
+    BiLevelAggregation,
+    TemporalRefinement,
+    anchor_families,
+    sample_features,
+    sampling_grid,
+)
 from lanelab.models.losses import Bi2LaneCriterion
 
 H, W = 64, 96
@@ -273,3 +280,23 @@ def test_a_batch_without_scored_frames_costs_nothing_but_reaches_every_output(ti
     assert set(losses) == {"total"} and float(losses["total"]) == 0.0
     losses["total"].backward()  # DDP ranks stay in step: every parameter that made an output has a gradient
     assert all(p.grad is not None for p in net.parameters())
+
+
+def test_the_point_level_is_a_transformer_decoder_layer_over_the_history_frames():
+    """BLFA's point level (eq. 7-8), computed without projecting the history keys, equals the plain
+    layer: each point's query (plus the current frame's age embedding) attends with
+    nn.MultiheadAttention to the same point of the real history frames (keys plus their ages)."""
+    torch.manual_seed(0)
+    B, A, M, N, C = 2, 3, 4, 3, 16
+    aggregation = BiLevelAggregation(C, M, N, "point", 2, 32, 0.0).eval()
+    current, history = torch.randn(B, A, M, C), torch.randn(B, A, M, N, C)
+    valid = torch.tensor([[True, False, True], [False, False, False]])  # stream 1 has no real history
+    got = aggregation(current, history, valid)
+    layer, age = aggregation.point, aggregation.age
+    query = (current[0] + age[0]).reshape(A * M, 1, C)
+    keys = (history[0] + age[1 : N + 1]).reshape(A * M, N, C)
+    attended, _ = layer.attention(query, keys, history[0].reshape(A * M, N, C), key_padding_mask=~valid[0].expand(A * M, N))
+    x = layer.norm1(query + attended)
+    expected = layer.norm2(x + layer.ffn(x)).reshape(A, M, C)
+    assert torch.allclose(got[0], expected, atol=1e-5)
+    assert torch.equal(got[1], current[1])  # no real history frame: the current feature as it is

@@ -21,6 +21,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from lanelab.models.single_query_attention import single_query_attention
+
 LEVELS = ("none", "point", "line", "bilevel")
 
 
@@ -35,9 +37,17 @@ class AttentionLayer(nn.Module):
         self.norm1, self.norm2 = nn.LayerNorm(embed_dim), nn.LayerNorm(embed_dim)
         self.dropout = nn.Dropout(dropout)
 
-    def forward(self, query: Tensor, key: Tensor, value: Tensor, key_padding_mask: Tensor | None = None) -> Tensor:
-        """query (B', Q, C), key / value (B', S, C), key_padding_mask (B', S) bool (True: ignored)."""
-        attended, _ = self.attention(query, key, value, key_padding_mask=key_padding_mask, need_weights=False)
+    def forward(
+        self, query: Tensor, key: Tensor, value: Tensor, key_padding_mask: Tensor | None = None,
+        key_offset: Tensor | None = None,
+    ) -> Tensor:  # fmt: skip
+        """query (..., Q, C), key / value (..., S, C), key_padding_mask (..., S) bool (True: ignored),
+        key_offset (S, C) added to the keys. More than one query: one sample dimension only."""
+        if query.shape[-2] == 1:  # the point level: the same result without projecting the S keys
+            attended = single_query_attention(self.attention, query, key, value, key_padding_mask, key_offset)
+        else:
+            key = key if key_offset is None else key + key_offset.to(key.dtype)
+            attended, _ = self.attention(query, key, value, key_padding_mask=key_padding_mask, need_weights=False)
         x = self.norm1(query + self.dropout(attended))
         return self.norm2(x + self.dropout(self.ffn(x)))
 
@@ -63,10 +73,10 @@ class BiLevelAggregation(nn.Module):
             self.index = nn.Parameter(torch.randn(num_points, embed_dim) * 0.02)
 
     def forward(self, current: Tensor, history: Tensor, history_valid: Tensor) -> Tensor:
-        """current (B, A, M, C): the current frame's lane features; history (B, A, N, M, C): the
+        """current (B, A, M, C): the current frame's lane features; history (B, A, M, N, C): the
         history frames', newest first; history_valid (B, N) bool. Returns (B, A, M, C)."""
         lanes = current
-        if self.point is not None and history.shape[2] > 0:
+        if self.point is not None and history.shape[3] > 0:
             lanes = self._point_level(lanes, history, history_valid)
         if self.line is not None:
             B, A, M, C = lanes.shape
@@ -77,16 +87,13 @@ class BiLevelAggregation(nn.Module):
 
     def _point_level(self, current: Tensor, history: Tensor, history_valid: Tensor) -> Tensor:
         """Eq. 7-8: each point's query against the same point of every history frame."""
-        B, A, N, M, C = history.shape
+        N = history.shape[3]
         if N >= self.age.shape[0]:
             built = self.age.shape[0] - 1
             raise ValueError(f"{N} history frames, but the point-level aggregation was built for {built}")
-        query = (current + self.age[0].to(current.dtype)).reshape(B * A * M, 1, C)
-        keys = history + self.age[1 : N + 1, None].to(history.dtype)  # (B, A, N, M, C)
-        keys = keys.permute(0, 1, 3, 2, 4).reshape(B * A * M, N, C)
-        values = history.permute(0, 1, 3, 2, 4).reshape(B * A * M, N, C)
+        query = (current + self.age[0].to(current.dtype)).unsqueeze(-2)  # (B, A, M, 1, C)
         any_valid = history_valid.any(-1)  # (B,)
         # A sample without real history attends to its padding instead (a defined softmax), then keeps its query.
-        mask = (~history_valid & any_valid[:, None])[:, None, None, :].expand(B, A, M, N).reshape(B * A * M, N)
-        fused = self.point(query, keys, values, mask).reshape(B, A, M, C)
+        mask = (~history_valid & any_valid[:, None])[:, None, None, :]  # (B, 1, 1, N)
+        fused = self.point(query, history, history, mask, key_offset=self.age[1 : N + 1])[..., 0, :]
         return torch.where(any_valid[:, None, None, None], fused, current)

@@ -204,7 +204,7 @@ class Bi2Lane(nn.Module):
             by_frame = dict(zip(orders[name], refined.features))
             current = by_frame[F - 1]
             history = [by_frame[f] for f in range(F - 2, -1, -1)]  # newest first
-            history = torch.stack(history, 2) if history else current.unsqueeze(2)[:, :, :0]  # (B, A, N, M, C)
+            history = torch.stack(history, 3) if history else current.unsqueeze(3)[:, :, :, :0]  # (B, A, M, N, C)
             fused.append(aggregation(current, history, history_valid))
             detections.append(refined.detections)
             detection_valid.append(refined.detection_valid)
