@@ -13,10 +13,9 @@ from collections import Counter
 
 import hydra
 from omegaconf import DictConfig
-from omegaconf.errors import MissingMandatoryValue
 
 from data_ingest.openlane.config import SCHEMA_NAME, OpenLaneAdapterConfig, validate
-from lanelab.config_checks import BAD_OPTION_STATUS, ConfigError, register_schema, run_hydra_tool, typed
+from lanelab.config_checks import options_or_exit, register_schema, run_hydra_tool
 from lanelab.json_files import LaneFileError
 from lanelab.store import ManifestError
 
@@ -43,14 +42,9 @@ def run(cfg: OpenLaneAdapterConfig) -> bool:
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="openlane")
 def _run(cfg: DictConfig) -> None:
-    try:
-        ok = run(validate(typed(cfg, OpenLaneAdapterConfig)))
-    except MissingMandatoryValue as err:
-        print(f"lanelab-openlane: missing option {err.full_key}=...", file=sys.stderr)
-        sys.exit(BAD_OPTION_STATUS)
-    except ConfigError as err:
-        print(f"lanelab-openlane: bad option: {err}", file=sys.stderr)
-        sys.exit(BAD_OPTION_STATUS)
+    options = options_or_exit("lanelab-openlane", cfg, OpenLaneAdapterConfig, validate)
+    try:  # a ConfigError of run ends as a bad option (run_hydra_tool)
+        ok = run(options)
     except (LaneFileError, ManifestError) as err:
         print(f"lanelab-openlane: {err}", file=sys.stderr)
         sys.exit(1)

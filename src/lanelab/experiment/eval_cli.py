@@ -25,9 +25,8 @@ from pathlib import Path
 
 import hydra
 from omegaconf import DictConfig
-from omegaconf.errors import MissingMandatoryValue
 
-from lanelab.config_checks import BAD_OPTION_STATUS, ConfigError, register_schema, run_hydra_tool, typed
+from lanelab.config_checks import BAD_OPTION_STATUS, options_or_exit, register_schema, run_hydra_tool
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.finite import NonFiniteError
@@ -103,14 +102,9 @@ def run(cfg: EvalConfig) -> list[Path]:
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="eval")
 def _run(cfg: DictConfig) -> None:
-    try:
-        run(validate(typed(cfg, EvalConfig)))
-    except MissingMandatoryValue as err:
-        print(f"lanelab-eval: missing option {err.full_key}=...", file=sys.stderr)
-        sys.exit(BAD_OPTION_STATUS)
-    except ConfigError as err:  # a bad option, or a checkpoint that lanelab-train did not write
-        print(f"lanelab-eval: bad option: {err}", file=sys.stderr)
-        sys.exit(BAD_OPTION_STATUS)
+    options = options_or_exit("lanelab-eval", cfg, EvalConfig, validate)
+    try:  # a ConfigError of run (a checkpoint that lanelab-train did not write) ends as a bad option (run_hydra_tool)
+        run(options)
     except (ManifestError, DataError) as err:  # a store that cannot give the split, checked before the model is built
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(BAD_OPTION_STATUS)

@@ -21,7 +21,6 @@ from lanelab.models.positional_encoding import PointPositionalEncoding
 from lanelab.models.query_init import LaneQueryGenerator
 from lanelab.models.sparselanestp import SparseLaneSTP
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
-from lanelab.models.sta_masks import density, sta_masks
 
 __all__ = [
     "BACKGROUND_INDEX",
@@ -45,7 +44,5 @@ __all__ = [
     "SparseLaneSTPLoss",
     "SpatioTemporalAttention",
     "category_to_index",
-    "density",
     "index_to_category",
-    "sta_masks",
 ]
