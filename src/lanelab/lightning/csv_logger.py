@@ -19,13 +19,18 @@ from lanelab.atomic_file import atomic_output
 
 
 class AppendingWriter(csv_logs.ExperimentWriter):
-    """Lightning's writer that keeps an existing ``metrics.csv`` and its columns."""
+    """Lightning's writer that keeps an existing ``metrics.csv`` and its columns, and counts its rows."""
 
     def _check_log_dir_exists(self) -> None:
-        """Read the columns of the existing file (Lightning's own deletes the file here)."""
-        if self._fs.isfile(self.metrics_file_path):
-            with self._fs.open(self.metrics_file_path, "r", newline="") as file:
-                self.metrics_keys = next(csv.reader(file), [])
+        """Read the columns and count the rows of the existing file (Lightning's own deletes the file here)."""
+        self.metrics_keys = self._header()
+        self._saved_count = len(self._saved_rows())
+
+    def _header(self) -> list[str]:
+        if not self._fs.isfile(self.metrics_file_path):
+            return []
+        with self._fs.open(self.metrics_file_path, "r", newline="") as file:
+            return next(csv.reader(file), [])
 
     def _saved_rows(self) -> list[dict[str, str]]:
         if not self._fs.isfile(self.metrics_file_path):
@@ -33,9 +38,13 @@ class AppendingWriter(csv_logs.ExperimentWriter):
         with self._fs.open(self.metrics_file_path, "r", newline="") as file:
             return list(csv.DictReader(file))
 
+    def save(self) -> None:
+        self._saved_count += len(self.metrics)
+        super().save()
+
     def row_count(self) -> int:
         """Rows of the history so far, saved or still buffered."""
-        return len(self._saved_rows()) + len(self.metrics)
+        return self._saved_count + len(self.metrics)
 
     def keep_first_rows(self, count: int) -> None:
         """Drop every row of the history after the first count."""
@@ -47,6 +56,7 @@ class AppendingWriter(csv_logs.ExperimentWriter):
             writer = csv.DictWriter(file, fieldnames=self.metrics_keys)
             writer.writeheader()
             writer.writerows(rows[:count])
+        self._saved_count = count
 
 
 class CSVLogger(csv_logs.CSVLogger):
