@@ -84,6 +84,10 @@ class TemporalRefinement(nn.Module):
         lanes, sampled_at, detections, detection_valid = [], [], [], []
         if len(order) > 1 and self.offsets is None:
             raise ValueError("this refinement was built without steps: it visits the current frame only")
+        # The ego motions every step needs, in one batch each: into the current frame (B, F, 4, 4)
+        # and on into the frame visited next (B, S, 4, 4).
+        into_current = ego_motion(T_world_lane[:, current, None], T_world_lane)
+        into_next = ego_motion(T_world_lane[:, list(order[1:])], T_world_lane[:, list(order[:-1])])
         for step, frame in enumerate(order):
             grid = sampling_grid(points, K[:, frame], T_lane_cam[:, frame], image_size)
             lane = sample_features(features[:, frame], grid)  # (B, A, M, C)
@@ -93,11 +97,10 @@ class TemporalRefinement(nn.Module):
                 break
             dx, dz = self.offsets(lane.flatten(-2)).unflatten(-1, (2, -1)).unbind(-2)  # (B, A, M) each, eq. 2
             refined = points + torch.stack([dx, torch.zeros_like(dx), dz], dim=-1)
-            detections.append(move_points(ego_motion(T_world_lane[:, current], T_world_lane[:, frame]), refined))
+            detections.append(move_points(into_current[:, frame], refined))
             detection_valid.append(valid[:, frame])
-            following = order[step + 1]
             if self.alignment:  # eq. 3
-                refined = move_points(ego_motion(T_world_lane[:, following], T_world_lane[:, frame]), refined)
+                refined = move_points(into_next[:, step], refined)
             points = torch.where(valid[:, frame, None, None, None], refined, points)
         if not detections:
             return Refined(lanes, sampled_at, points.new_zeros(B, 0, *points.shape[1:]), valid.new_zeros(B, 0))
