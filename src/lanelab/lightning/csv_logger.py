@@ -23,20 +23,17 @@ class AppendingWriter(csv_logs.ExperimentWriter):
 
     def _check_log_dir_exists(self) -> None:
         """Read the columns and count the rows of the existing file (Lightning's own deletes the file here)."""
-        self.metrics_keys = self._header()
-        self._saved_count = len(self._saved_rows())
+        self.metrics_keys, rows = self._read()
+        self._saved_count = len(rows)
 
-    def _header(self) -> list[str]:
+    def _read(self) -> tuple[list[str], list[dict[str, str]]]:
+        """The saved file's columns and rows (none without a file)."""
         if not self._fs.isfile(self.metrics_file_path):
-            return []
+            return [], []
         with self._fs.open(self.metrics_file_path, "r", newline="") as file:
-            return next(csv.reader(file), [])
-
-    def _saved_rows(self) -> list[dict[str, str]]:
-        if not self._fs.isfile(self.metrics_file_path):
-            return []
-        with self._fs.open(self.metrics_file_path, "r", newline="") as file:
-            return list(csv.DictReader(file))
+            reader = csv.DictReader(file)
+            rows = list(reader)
+            return list(reader.fieldnames or []), rows
 
     def save(self) -> None:
         self._saved_count += len(self.metrics)
@@ -49,7 +46,7 @@ class AppendingWriter(csv_logs.ExperimentWriter):
     def keep_first_rows(self, count: int) -> None:
         """Drop every row of the history after the first count."""
         self.save()
-        rows = self._saved_rows()
+        _, rows = self._read()
         if len(rows) <= count:
             return
         with atomic_output(Path(self.metrics_file_path)) as tmp, tmp.open("w", newline="") as file:
