@@ -84,10 +84,11 @@ class TemporalRefinement(nn.Module):
         lanes, sampled_at, detections, detection_valid = [], [], [], []
         if len(order) > 1 and self.offsets is None:
             raise ValueError("this refinement was built without steps: it visits the current frame only")
-        # The ego motions every step needs, in one batch each: into the current frame (B, F, 4, 4)
-        # and on into the frame visited next (B, S, 4, 4).
-        into_current = ego_motion(T_world_lane[:, current, None], T_world_lane)
-        into_next = ego_motion(T_world_lane[:, list(order[1:])], T_world_lane[:, list(order[:-1])])
+        # The ego motions the steps need, in one batch each: into the current frame (B, F, 4, 4)
+        # and on into the frame visited next (B, S, 4, 4); none when only the current frame is visited.
+        steps = len(order) > 1
+        into_current = ego_motion(T_world_lane[:, current, None], T_world_lane) if steps else None
+        into_next = ego_motion(T_world_lane[:, list(order[1:])], T_world_lane[:, list(order[:-1])]) if steps else None
         for step, frame in enumerate(order):
             grid = sampling_grid(points, K[:, frame], T_lane_cam[:, frame], image_size)
             lane = sample_features(features[:, frame], grid)  # (B, A, M, C)
