@@ -1,7 +1,7 @@
 """Bi²Lane inference speed against the number of history frames, with and without the frame cache.
 
     python benchmarks/bench_bi2lane.py [--configs tiny paper] [--history 0 1 2 3 4 5] [--device cpu|cuda]
-        [--dtype fp32|bf16] [--frames 10] [--warmup 3] [--threads N] [--json out.json]
+        [--dtype fp32|bf16] [--cuda-graphs on|off] [--frames 10] [--warmup 3] [--threads N] [--json out.json]
 
 Each configuration is conf/'s: "tiny" = ``experiment=tiny model=bi2lane`` (at its 64 x 96 images),
 "paper" = ``model=bi2lane`` (ResNet-50, Anchor3DLane's anchors) at 360 x 480 (Anchor3DLane's input).
@@ -10,6 +10,8 @@ with random weights runs the same random clip of one stream, eval mode, no gradi
 - cached: ``reset`` once, then ``step`` per frame (one backbone pass a frame, the past frames'
   features from the cache);
 - uncached: ``forward`` on the window of the N + 1 latest frames (N + 1 backbone passes).
+On a GPU, cached streaming replays each frame's kernels from CUDA graphs (``model.net.cuda_graphs``,
+``--cuda-graphs off`` to launch them one by one); the uncached ``forward`` always launches them.
 Variants run interleaved frame by frame, so that load from other processes affects them alike;
 figures are medians over the timed frames (after ``--warmup``). The paper's Table VI grows from
 29 ms (1 history frame) to 44 ms (5), +52 %; "growth" below is the same ratio, 5 frames over 1.
@@ -37,9 +39,10 @@ CONFIGS = {
 CAMERA_KEYS = ("K", "T_lane_cam", "T_world_lane")
 
 
-def build(config: str, history: int, device: torch.device) -> torch.nn.Module:
+def build(config: str, history: int, device: torch.device, cuda_graphs: bool) -> torch.nn.Module:
     overrides, _ = CONFIGS[config]
-    cfg = load_train_config([*overrides, f"model.net.num_history_frames={history}", "paths.output_dir=unused"])
+    extra = [f"model.net.num_history_frames={history}", f"model.net.cuda_graphs={cuda_graphs}"]
+    cfg = load_train_config([*overrides, *extra, "paths.output_dir=unused"])
     torch.manual_seed(0)
     return instantiate(cfg.model.net).to(device).eval()
 
@@ -78,7 +81,7 @@ def timed(call, device: torch.device) -> float:
 
 def run(config: str, histories: list[int], args: argparse.Namespace, device: torch.device) -> list[dict]:
     frames = clip(args.warmup + args.frames, CONFIGS[config][1], device)
-    models = {n: build(config, n, device) for n in histories}
+    models = {n: build(config, n, device, args.cuda_graphs == "on") for n in histories}
     autocast = torch.autocast(device.type, dtype=torch.bfloat16) if args.dtype == "bf16" else nullcontext()
     times = {(n, mode): [] for n in histories for mode in ("cached", "uncached")}
     with torch.no_grad(), autocast:
@@ -105,6 +108,7 @@ def main() -> None:
     parser.add_argument("--history", nargs="+", type=int, default=[0, 1, 2, 3, 4, 5])
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--dtype", default="fp32", choices=["fp32", "bf16"])
+    parser.add_argument("--cuda-graphs", default="on", choices=["on", "off"], help="cached streaming on a GPU")
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--warmup", type=int, default=3)
     parser.add_argument("--threads", type=int, default=None)
@@ -117,7 +121,8 @@ def main() -> None:
         machine = torch.cuda.get_device_name(device)
     else:
         machine = f"{platform.processor() or platform.machine()}, {torch.get_num_threads()} threads"
-    print(f"Bi²Lane inference, {args.dtype}, {machine}; medians over {args.frames} frames after {args.warmup}")
+    graphs = f", CUDA graphs {args.cuda_graphs}" if device.type == "cuda" else ""
+    print(f"Bi²Lane inference, {args.dtype}{graphs}, {machine}; medians over {args.frames} frames after {args.warmup}")
     print("| config | history frames | cached ms | cached FPS | uncached ms | uncached FPS |")
     print("|---|---:|---:|---:|---:|---:|")
     rows = []
@@ -133,7 +138,7 @@ def main() -> None:
                 growth = by[(5, mode)]["ms"] / by[(1, mode)]["ms"] - 1
                 print(f"{config}, {mode}: 5 history frames cost {100 * growth:+.0f} % over 1 (paper: +52 %)")
     if args.json:
-        args.json.write_text(json.dumps({"machine": machine, "dtype": args.dtype, "rows": rows}, indent=1))
+        args.json.write_text(json.dumps({"machine": machine, "dtype": args.dtype, "cuda_graphs": args.cuda_graphs, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":

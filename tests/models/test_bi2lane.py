@@ -252,6 +252,27 @@ def test_streaming_with_the_cache_equals_the_windowed_computation(tiny_net):
         torch.testing.assert_close(restarted["points"][:, 0], fresh.step(step)["points"][:, 0], atol=1e-5, rtol=1e-5)
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device (run on a device machine)")
+@pytest.mark.parametrize("dtype", [torch.float32, torch.bfloat16])
+def test_bi2lane_streaming_with_graphs_equals_it_without(tiny_net, dtype):
+    eager = build(tiny_net, num_history_frames=2, cuda_graphs=False).cuda()
+    graphed = build(tiny_net, num_history_frames=2).cuda()
+    graphed.load_state_dict(eager.state_dict())
+    clip = {key: value.cuda() for key, value in window_batch(2, 6, seed=5).items()}
+    tolerance = 1e-5 if dtype == torch.float32 else 2e-2
+    with torch.no_grad(), torch.autocast("cuda", dtype=dtype, enabled=dtype != torch.float32):
+        for f in range(6):
+            frame = {key: clip[key][:, f] for key in ("images", "K", "T_lane_cam", "T_world_lane")}
+            if f == 4:  # one stream starts again: the reset happens outside the graphs
+                frame["reset"] = torch.tensor([True, False], device="cuda")
+            want, got = eager.step(frame), graphed.step(frame)
+            for key in ("points", "logits", "detections"):
+                torch.testing.assert_close(got[key].float(), want[key].float(), atol=tolerance, rtol=tolerance)
+    assert graphed._graphed is not None and eager._graphed is None
+    graphed.cpu()  # a move drops the graphs, which read the parameters where they were
+    assert graphed._graphed is None
+
+
 # ------------------------------------------------------------------------------ gradients
 def test_every_parameter_receives_gradient(tiny_net, tiny_criterion):
     net = build(tiny_net).train()  # (build makes the zero-initialised outputs non-zero: they pass gradient back)

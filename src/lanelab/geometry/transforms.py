@@ -23,7 +23,7 @@ def make_transform(R: Tensor, t: Tensor) -> Tensor:
     """
     batch = torch.broadcast_shapes(R.shape[:-2], t.shape[:-1])
     top = torch.cat([R.expand(*batch, 3, 3), t.expand(*batch, 3).unsqueeze(-1)], dim=-1)
-    bottom = torch.tensor([0.0, 0.0, 0.0, 1.0], dtype=R.dtype, device=R.device)
+    bottom = torch.cat([R.new_zeros(3), R.new_ones(1)])  # on R's device: no host copy (CUDA graphs capture none)
     return torch.cat([top, bottom.expand(*batch, 1, 4)], dim=-2)
 
 

@@ -42,6 +42,7 @@ from lanelab.models.bi2lane.anchors import anchor_families
 from lanelab.models.bi2lane.bev import BEVSegmentation
 from lanelab.models.bi2lane.frame_cache import FrameCache
 from lanelab.models.bi2lane.refinement import TemporalRefinement
+from lanelab.models.cuda_graph import CUDAGraphed
 from lanelab.models.fpn import FPN
 from lanelab.models.heads import mlp
 
@@ -81,6 +82,8 @@ class Bi2Lane(nn.Module):
     num_heads, ffn_dim, dropout: BLFA's attention layers; head_hidden_dim, head_hidden_layers:
     the MLPs of the offset heads and of the class / x / z / visibility heads.
     num_classes K (without background); bev: the auxiliary BEV branch, None: none.
+    cuda_graphs: streaming inference on a GPU replays each frame's kernels from CUDA graphs
+    (:mod:`lanelab.models.cuda_graph`; the same results, without the launch cost of BDTR's steps).
     """
 
     def __init__(
@@ -103,6 +106,7 @@ class Bi2Lane(nn.Module):
         head_hidden_layers: int,
         num_classes: int,
         bev: BEVBranch | None,
+        cuda_graphs: bool = True,
     ) -> None:
         super().__init__()
         if direction not in DIRECTIONS:
@@ -136,6 +140,8 @@ class Bi2Lane(nn.Module):
             nn.init.zeros_(branch[-1].bias)
         self.bev = None if bev is None else BEVSegmentation(embed_dim, **bev)
         self._stream = FrameCache(num_history_frames + 1)
+        self.cuda_graphs = cuda_graphs
+        self._graphed: tuple[CUDAGraphed, CUDAGraphed] | None = None  # (encode, detect), made at first use
 
     # ----------------------------------------------------------------- windowed
     def forward(self, batch: Mapping[str, Tensor]) -> dict[str, Any]:
@@ -171,9 +177,11 @@ class Bi2Lane(nn.Module):
         if "reset" in frame:
             self.reset(frame["reset"])
         images = frame["images"]
-        features = self._encode(images[:, None])[:, 0]
+        encode, detect = self._streaming_calls(images)
+        features = encode(images[:, None])[:, 0]
         window = self._stream.push(features, frame["K"], frame["T_lane_cam"], frame["T_world_lane"])
-        return self._detect(window.pop("features"), **window, image_size=tuple(images.shape[-2:]))
+        cameras = (window[key] for key in ("K", "T_lane_cam", "T_world_lane", "valid"))
+        return detect(window["features"], *cameras, tuple(images.shape[-2:]))
 
     # ------------------------------------------------------------------ decoding
     def decode(self, outputs: Mapping[str, Any], y: Tensor) -> Tensor:
@@ -184,6 +192,18 @@ class Bi2Lane(nn.Module):
         return torch.stack([x, y.to(points).expand_as(x), z, v], dim=-1)
 
     # ----------------------------------------------------------------- internals
+    def _streaming_calls(self, images: Tensor) -> tuple[Any, Any]:
+        """(encode, detect) for a streaming frame: replayed from CUDA graphs for inference on a GPU."""
+        if not (self.cuda_graphs and images.is_cuda and not self.training and not torch.is_grad_enabled()):
+            return self._encode, self._detect
+        if self._graphed is None:
+            self._graphed = CUDAGraphed(self._encode), CUDAGraphed(self._detect)
+        return self._graphed
+
+    def _apply(self, fn: Any, recurse: bool = True) -> "Bi2Lane":
+        self._graphed = None  # captured graphs read the parameters where they were before the move
+        return super()._apply(fn, recurse)
+
     def _encode(self, images: Tensor) -> Tensor:
         """images (B, F, 3, H, W) -> stride-8 features (B, F, C, H / 8, W / 8), batched over frames."""
         B, F = images.shape[:2]

@@ -88,7 +88,10 @@ class TemporalRefinement(nn.Module):
         # and on into the frame visited next (B, S, 4, 4); none when only the current frame is visited.
         steps = len(order) > 1
         into_current = ego_motion(T_world_lane[:, current, None], T_world_lane) if steps else None
-        into_next = ego_motion(T_world_lane[:, list(order[1:])], T_world_lane[:, list(order[:-1])]) if steps else None
+        into_next = None
+        if steps:  # the visited poses by slicing: an index list would be a host-to-device copy, which CUDA graphs refuse
+            visited = torch.stack([T_world_lane[:, f] for f in order], 1)
+            into_next = ego_motion(visited[:, 1:], visited[:, :-1])
         for step, frame in enumerate(order):
             grid = sampling_grid(points, K[:, frame], T_lane_cam[:, frame], image_size)
             lane = sample_features(features[:, frame], grid)  # (B, A, M, C)
