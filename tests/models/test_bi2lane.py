@@ -21,6 +21,7 @@ from lanelab.models.bi2lane import (
     BiLevelAggregation,
     TemporalRefinement,
     anchor_families,
+    refine,
     sample_features,
     sampling_grid,
 )
@@ -167,6 +168,29 @@ def test_a_padded_frame_passes_the_anchors_on_unrefined():
     torch.testing.assert_close(refined.anchors[1][0], anchors)  # frame 1 (the clip's first) starts from the anchors
     assert not torch.allclose(refined.anchors[2][0], anchors)
     assert refined.detection_valid.tolist() == [[False, True]]
+
+
+def test_two_directions_in_lockstep_compute_what_each_computes_alone():
+    M, F, B = 4, 3, 2
+    torch.manual_seed(1)
+    forward, reverse = TemporalRefinement(4, M, 8, 1, alignment=True), TemporalRefinement(4, M, 8, 1, alignment=True)
+    for refinement in (forward, reverse):  # distinct, non-zero heads
+        torch.nn.init.normal_(refinement.offsets[-1].weight, std=0.05)
+    anchors = torch.stack([torch.full((M,), -1.5), torch.linspace(8.0, 30.0, M), torch.zeros(M)], -1)[None]
+    features = torch.randn(B, F, 4, H // 8, W // 8)
+    inputs = (features, K.expand(B, F, 3, 3), T_LANE_CAM.expand(B, F, 4, 4), poses(F)[None].expand(B, F, 4, 4),
+              torch.tensor([[True, True, True], [False, True, True]]), (H, W))  # fmt: skip
+    orders = [[0, 1, 2], [2, 1, 0]]
+    together = refine([forward, reverse], anchors, orders, *inputs)
+    for direction, order, joint in zip((forward, reverse), orders, together):
+        alone = direction(anchors, order, *inputs)
+        torch.testing.assert_close(joint.detections, alone.detections, atol=1e-5, rtol=1e-5)
+        assert torch.equal(joint.detection_valid, alone.detection_valid)
+        for got, want in zip(joint.features + joint.anchors, alone.features + alone.anchors):
+            torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
+    assert not torch.allclose(together[0].anchors[1], together[1].anchors[1])  # the two chains did differ
+    with pytest.raises(ValueError, match="lockstep"):
+        refine([forward, reverse], anchors, [[0, 1, 2], [2, 1]], *inputs)
 
 
 # -------------------------------------------------------------------------- ablation switches

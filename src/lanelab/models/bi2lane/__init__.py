@@ -7,7 +7,7 @@ from lanelab.models.bi2lane.anchors import anchor_families, ego_motion, move_poi
 from lanelab.models.bi2lane.bev import BEVSegmentation
 from lanelab.models.bi2lane.frame_cache import FrameCache
 from lanelab.models.bi2lane.model import Bi2Lane
-from lanelab.models.bi2lane.refinement import TemporalRefinement
+from lanelab.models.bi2lane.refinement import TemporalRefinement, refine
 
 __all__ = [
     "BEVSegmentation",
@@ -18,6 +18,7 @@ __all__ = [
     "anchor_families",
     "ego_motion",
     "move_points",
+    "refine",
     "sample_features",
     "sampling_grid",
 ]

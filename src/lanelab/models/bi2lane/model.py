@@ -41,7 +41,7 @@ from lanelab.models.bi2lane.aggregation import BiLevelAggregation
 from lanelab.models.bi2lane.anchors import anchor_families
 from lanelab.models.bi2lane.bev import BEVSegmentation
 from lanelab.models.bi2lane.frame_cache import FrameCache
-from lanelab.models.bi2lane.refinement import TemporalRefinement
+from lanelab.models.bi2lane.refinement import TemporalRefinement, refine
 from lanelab.models.cuda_graph import CUDAGraphed
 from lanelab.models.fpn import FPN
 from lanelab.models.heads import mlp
@@ -219,8 +219,8 @@ class Bi2Lane(nn.Module):
         orders = {"forward": list(range(F)), "reverse": list(range(F - 1, -1, -1))}
         history_valid = valid[:, :-1].flip(1)  # newest first
         fused, detections, detection_valid = [], [], []
-        for name, refinement, aggregation in zip(self.directions, self.refinement, self.aggregation):
-            refined = refinement(self.anchors, orders[name], features, *camera)
+        chains = refine(self.refinement, self.anchors, [orders[name] for name in self.directions], features, *camera)
+        for name, refined, aggregation in zip(self.directions, chains, self.aggregation):
             by_frame = dict(zip(orders[name], refined.features))
             current = by_frame[F - 1]
             history = [by_frame[f] for f in range(F - 2, -1, -1)]  # newest first

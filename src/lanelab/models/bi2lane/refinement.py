@@ -17,11 +17,15 @@ it unchanged, so a window that starts at a clip's first frame is refined as if i
 Each step's refined anchors A + S are also returned, moved into the current frame with the true
 ego motion whatever ``alignment`` says: they are the lanes that frame detected, which the
 criterion supervises, as Anchor3DLane supervises every stage of its iterative regression.
+
+The two directions are independent chains of equal length, so :func:`refine` runs them in
+lockstep as one batch (each with its own offset head): at batch 1 a chain step is a few dozen
+small kernels, and the history frames cost launches rather than arithmetic.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import torch
@@ -77,35 +81,90 @@ class TemporalRefinement(nn.Module):
         """anchors (A, M, 3) in the first visited frame; order: the frame indices visited;
         features (B, F, C, h, w) of every frame; K (B, F, 3, 3), T_lane_cam, T_world_lane
         (B, F, 4, 4), valid (B, F) bool; the current frame is the last (F - 1)."""
-        B = features.shape[0]
-        current = features.shape[1] - 1
-        # Metres in at least float32: bf16 steps are half a metre at 100 m.
-        points = anchors.to(torch.promote_types(features.dtype, torch.float32)).expand(B, *anchors.shape)
-        lanes, sampled_at, detections, detection_valid = [], [], [], []
-        if len(order) > 1 and self.offsets is None:
-            raise ValueError("this refinement was built without steps: it visits the current frame only")
-        # The ego motions the steps need, in one batch each: into the current frame (B, F, 4, 4)
-        # and on into the frame visited next (B, S, 4, 4); none when only the current frame is visited.
-        steps = len(order) > 1
-        into_current = ego_motion(T_world_lane[:, current, None], T_world_lane) if steps else None
-        into_next = None
-        if steps:  # the visited poses by slicing: an index list would be a host-to-device copy, which CUDA graphs refuse
-            visited = torch.stack([T_world_lane[:, f] for f in order], 1)
-            into_next = ego_motion(visited[:, 1:], visited[:, :-1])
-        for step, frame in enumerate(order):
-            grid = sampling_grid(points, K[:, frame], T_lane_cam[:, frame], image_size)
-            lane = sample_features(features[:, frame], grid)  # (B, A, M, C)
-            lanes.append(lane)
-            sampled_at.append(points)
-            if step == len(order) - 1:
-                break
-            dx, dz = self.offsets(lane.flatten(-2)).unflatten(-1, (2, -1)).unbind(-2)  # (B, A, M) each, eq. 2
-            refined = points + torch.stack([dx, torch.zeros_like(dx), dz], dim=-1)
-            detections.append(move_points(into_current[:, frame], refined))
-            detection_valid.append(valid[:, frame])
-            if self.alignment:  # eq. 3
-                refined = move_points(into_next[:, step], refined)
-            points = torch.where(valid[:, frame, None, None, None], refined, points)
-        if not detections:
-            return Refined(lanes, sampled_at, points.new_zeros(B, 0, *points.shape[1:]), valid.new_zeros(B, 0))
-        return Refined(lanes, sampled_at, torch.stack(detections, 1), torch.stack(detection_valid, 1))
+        return refine([self], anchors, [order], features, K, T_lane_cam, T_world_lane, valid, image_size)[0]
+
+
+def refine(
+    directions: Sequence[TemporalRefinement],
+    anchors: Tensor,
+    orders: Sequence[Sequence[int]],
+    features: Tensor,
+    K: Tensor,
+    T_lane_cam: Tensor,
+    T_world_lane: Tensor,
+    valid: Tensor,
+    image_size: tuple[int, int],
+) -> list[Refined]:
+    """The chains of D directions run in lockstep, each with its own offset head, as one batch
+    of D x B streams: step s of every chain is one sampling and one (grouped) head call, so two
+    directions cost the kernel launches of one. orders: each direction's visited frames, all of
+    one length; the other arguments as :meth:`TemporalRefinement.forward`'s. One
+    :class:`Refined` per direction, in the order given."""
+    D, S = len(directions), len(orders[0])
+    if any(len(order) != S for order in orders):
+        raise ValueError(f"directions run in lockstep over windows of one length, got orders {orders}")
+    if S > 1 and any(direction.offsets is None for direction in directions):
+        raise ValueError("this refinement was built without steps: it visits the current frame only")
+    B, current = features.shape[0], features.shape[1] - 1
+
+    def at(tensor: Tensor, step: int) -> Tensor:
+        """(D·B, ...) of the frames the directions visit at this step, by slicing: an index list
+        would be a host-to-device copy, which CUDA graphs refuse."""
+        return torch.cat([tensor[:, order[step]] for order in orders])
+
+    # Metres in at least float32: bf16 steps are half a metre at 100 m.
+    points = anchors.to(torch.promote_types(features.dtype, torch.float32)).expand(D * B, *anchors.shape)
+    lanes, sampled_at, detections, detection_valid = [], [], [], []
+    if S > 1:  # the ego motions the steps need, in one batch: into the current frame and into the next visited one
+        visited = torch.stack([at(T_world_lane, step) for step in range(S)], 1)  # (D·B, S, 4, 4)
+        into_current = ego_motion(T_world_lane[:, current, None].repeat(D, 1, 1, 1), visited)
+        into_next = ego_motion(visited[:, 1:], visited[:, :-1])
+        offsets = grouped_mlp([direction.offsets for direction in directions])
+    for step in range(S):
+        grid = sampling_grid(points, at(K, step), at(T_lane_cam, step), image_size)
+        lane = sample_features(at(features, step), grid)  # (D·B, A, M, C)
+        lanes.append(lane)
+        sampled_at.append(points)
+        if step == S - 1:
+            break
+        shifts = offsets(lane.flatten(-2).reshape(D, -1, lane.shape[-2] * lane.shape[-1]))  # (D, B·A, 2M)
+        dx, dz = shifts.reshape(*lane.shape[:2], 2, -1).unbind(-2)  # (D·B, A, M) each
+        refined = points + torch.stack([dx, torch.zeros_like(dx), dz], dim=-1)  # eq. 2
+        detections.append(move_points(into_current[:, step], refined))
+        step_valid = at(valid, step)
+        detection_valid.append(step_valid)
+        if directions[0].alignment:  # eq. 3
+            refined = move_points(into_next[:, step], refined)
+        points = torch.where(step_valid[:, None, None, None], refined, points)
+    results = []
+    for d in range(D):
+        mine = slice(d * B, (d + 1) * B)
+        if detections:
+            found = torch.stack([t[mine] for t in detections], 1)
+            found_valid = torch.stack([t[mine] for t in detection_valid], 1)
+        else:
+            found, found_valid = points.new_zeros(B, 0, *points.shape[1:]), valid.new_zeros(B, 0)
+        results.append(Refined([t[mine] for t in lanes], [t[mine] for t in sampled_at], found, found_valid))
+    return results
+
+
+def grouped_mlp(mlps: Sequence[nn.Sequential]) -> Callable[[Tensor], Tensor]:
+    """x (D, N, in) -> (D, N, out), slice d through mlps[d] (Linear and activation layers, all
+    of one layout), as batched matrix products: one kernel a layer for all D."""
+    if len(mlps) == 1:
+        return lambda x: mlps[0](x)
+    layers = []
+    for group in zip(*mlps):
+        if isinstance(group[0], nn.Linear):
+            weight = torch.stack([layer.weight for layer in group]).transpose(1, 2)  # (D, in, out)
+            bias = torch.stack([layer.bias for layer in group])[:, None]  # (D, 1, out)
+            layers.append(lambda x, w=weight, b=bias: torch.baddbmm(b.to(x.dtype), x, w.to(x.dtype)))
+        else:
+            layers.append(group[0])
+
+    def run(x: Tensor) -> Tensor:
+        for layer in layers:
+            x = layer(x)
+        return x
+
+    return run
