@@ -26,7 +26,7 @@ small kernels, and the history frames cost launches rather than arithmetic.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor, nn
@@ -67,21 +67,11 @@ class TemporalRefinement(nn.Module):
             nn.init.zeros_(self.offsets[-1].bias)
         self.alignment = alignment
 
-    def forward(
-        self,
-        anchors: Tensor,
-        order: Sequence[int],
-        features: Tensor,
-        K: Tensor,
-        T_lane_cam: Tensor,
-        T_world_lane: Tensor,
-        valid: Tensor,
-        image_size: tuple[int, int],
-    ) -> Refined:
-        """anchors (A, M, 3) in the first visited frame; order: the frame indices visited;
-        features (B, F, C, h, w) of every frame; K (B, F, 3, 3), T_lane_cam, T_world_lane
-        (B, F, 4, 4), valid (B, F) bool; the current frame is the last (F - 1)."""
-        return refine([self], anchors, [order], features, K, T_lane_cam, T_world_lane, valid, image_size)[0]
+    def forward(self, anchors: Tensor, order: Sequence[int], *window: Any) -> Refined:
+        """This direction alone: anchors (A, M, 3) in the first visited frame; order: the frame
+        indices visited; window: features, K, T_lane_cam, T_world_lane, valid, image_size, as
+        :func:`refine` takes them."""
+        return refine([self], anchors, [order], *window)[0]
 
 
 def refine(
@@ -97,9 +87,12 @@ def refine(
 ) -> list[Refined]:
     """The chains of D directions run in lockstep, each with its own offset head, as one batch
     of D x B streams: step s of every chain is one sampling and one (grouped) head call, so two
-    directions cost the kernel launches of one. orders: each direction's visited frames, all of
-    one length; the other arguments as :meth:`TemporalRefinement.forward`'s. One
-    :class:`Refined` per direction, in the order given."""
+    directions cost the kernel launches of one.
+
+    anchors (A, M, 3) in the first frame each direction visits; orders: each direction's visited
+    frame indices, all of one length; features (B, F, C, h, w) of every frame; K (B, F, 3, 3),
+    T_lane_cam, T_world_lane (B, F, 4, 4), valid (B, F) bool; the current frame is the last
+    (F - 1). One :class:`Refined` per direction, in the order given."""
     D, S = len(directions), len(orders[0])
     if any(len(order) != S for order in orders):
         raise ValueError(f"directions run in lockstep over windows of one length, got orders {orders}")
