@@ -1,6 +1,6 @@
-"""lanelab-export: the streaming SparseLaneSTP with its memory as explicit state, through
-torch.export and ONNX (run by onnxruntime), equals ``step()`` over a 20-frame clip of a drive
-log with its memory carried (and reset mid-clip), within 1e-4 in fp32."""
+"""lanelab-export: the streaming SparseLaneSTP and Bi²Lane with their memory as explicit state,
+through torch.export and ONNX (run by onnxruntime), equal ``step()`` over a 20-frame clip of a
+drive log with the memory carried (and reset mid-clip), within 1e-4 in fp32."""
 
 from __future__ import annotations
 
@@ -20,12 +20,12 @@ from data_ingest.ingest.mcap_reader import ReadReport
 from data_ingest.ingest.spill import Spill
 from lanelab.deploy.config import load_export_config
 from lanelab.deploy.export import (
-    ALL_INPUTS,
-    ALL_OUTPUTS,
     METADATA_KEY,
     check,
     export,
     export_checkpoint,
+    input_names,
+    output_names,
     runner,
     synthetic_clip,
 )
@@ -59,35 +59,62 @@ def test_the_exported_step_equals_step_over_a_clip_with_memory(fmt: str, suffix:
     trained = load_trained(checkpoint, "cpu")
     exported, _ = export_checkpoint(trained, fmt, tmp_path / f"model{suffix}", batch=1, check_frames=0, tolerance=TOLERANCE)
     clip = log_clip(checkpoint, synth_log("foxglove-protobuf"))
-    run_file = runner(exported.path, fmt)
-    differences = check(trained.net, trained.y, run_file, clip)
-    assert set(differences) == set(ALL_OUTPUTS)
-    assert max(differences.values()) <= TOLERANCE, differences
+    state = check_carried_memory(trained, exported.path, fmt, clip)
+    assert bool(state[3].all())  # every memory slot filled at the end
+    metadata = read_metadata(exported.path, fmt)
+    assert metadata["y"] == trained.y.tolist() and metadata["image_size"] == [64, 96]
+    assert metadata["state"] == {
+        "embeddings": {"shape": [3, 4, 11, 32], "dtype": "float32"}, "points": {"shape": [3, 4, 11, 4], "dtype": "float32"},
+        "poses": {"shape": [3, 4, 4], "dtype": "float64"}, "valid": {"shape": [3], "dtype": "bool"},
+    }  # fmt: skip
 
-    # The memory is in the graph: carried, it changes the lanes of the frames after the first.
-    state = ExplicitStateStep(trained.net, trained.y).initial_state(1).tensors()
+
+@pytest.mark.parametrize("fmt, suffix", [("torch", ".pt2"), ("onnx", ".onnx")])
+def test_the_exported_bi2lane_equals_its_step_with_its_frame_cache(fmt: str, suffix: str, bi2lane_checkpoint: Path,
+                                                                   synth_log, tmp_path: Path) -> None:
+    trained = load_trained(bi2lane_checkpoint, "cpu")
+    assert type(trained.net).__name__ == "Bi2Lane"
+    exported, _ = export_checkpoint(trained, fmt, tmp_path / f"bi2lane{suffix}", batch=1, check_frames=0,
+                                    tolerance=TOLERANCE)  # fmt: skip
+    clip = log_clip(bi2lane_checkpoint, synth_log("foxglove-protobuf"))
+    state = check_carried_memory(trained, exported.path, fmt, clip)
+    assert bool(state[4].all())  # every cached frame real at the end (8 frames since the reset)
+    metadata = read_metadata(exported.path, fmt)
+    assert metadata["model"] == "Bi2Lane" and metadata["outputs"][:3] == ["points", "logits", "lanes"]
+    assert metadata["state"]["features"] == {"shape": [3, 32, 8, 12], "dtype": "float32"}  # 3 frames of stride-8 maps
+    assert metadata["state"]["T_world_lane"] == {"shape": [3, 4, 4], "dtype": "float64"}
+
+
+def check_carried_memory(trained, path: Path, fmt: str, clip: list[dict[str, torch.Tensor]]) -> tuple[torch.Tensor, ...]:
+    """The file equals step() over the clip; its memory matters (carried, the lanes after the
+    first frame differ from a reset's); its inputs and outputs are named. The final state."""
+    run_file = runner(path, fmt)
+    differences = check(trained.net, trained.y, run_file, clip)
+    assert set(differences) == set(output_names(trained.net))
+    assert max(differences.values()) <= TOLERANCE, differences
+    state = ExplicitStateStep(trained.net, trained.y).initial_state(1, (64, 96)).tensors()
     carried, fresh = [], []
     for frame in clip:
-        inputs = [frame[name] for name in ALL_INPUTS[:5]]
+        inputs = [frame[name] for name in input_names(trained.net)[:5]]
         outputs = run_file(*inputs, *state)
         state = outputs[3:]
         carried.append(outputs[2])
         fresh.append(run_file(*inputs[:4], torch.tensor([True]), *state)[2])
     assert max(float((a - b).abs().max()) for a, b in zip(carried[1:], fresh[1:])) > 10 * TOLERANCE
-    assert bool(state[3].all())  # every memory slot filled at the end
-
     if fmt == "onnx":
-        session = onnxruntime.InferenceSession(str(exported.path), providers=["CPUExecutionProvider"])
-        assert [i.name for i in session.get_inputs()] == list(ALL_INPUTS)
-        assert [o.name for o in session.get_outputs()] == list(ALL_OUTPUTS)
-        props = {p.key: p.value for p in onnx.load(str(exported.path)).metadata_props}
-        metadata = json.loads(props[METADATA_KEY])
-    else:
-        with zipfile.ZipFile(exported.path) as archive:
-            name = next(n for n in archive.namelist() if n.endswith(f"{METADATA_KEY}.json"))
-            metadata = json.loads(archive.read(name))
-    assert metadata["y"] == trained.y.tolist() and metadata["image_size"] == [64, 96]
-    assert metadata["memory"] == {"frames": 3, "lines": 4, "points": 11, "channels": 32}
+        session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        assert [i.name for i in session.get_inputs()] == list(input_names(trained.net))
+        assert [o.name for o in session.get_outputs()] == list(output_names(trained.net))
+    return state
+
+
+def read_metadata(path: Path, fmt: str) -> dict:
+    if fmt == "onnx":
+        props = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
+        return json.loads(props[METADATA_KEY])
+    with zipfile.ZipFile(path) as archive:
+        name = next(n for n in archive.namelist() if n.endswith(f"{METADATA_KEY}.json"))
+        return json.loads(archive.read(name))
 
 
 def test_a_single_frame_model_exports_without_memory(tmp_path: Path) -> None:
@@ -96,7 +123,7 @@ def test_a_single_frame_model_exports_without_memory(tmp_path: Path) -> None:
     y = torch.linspace(3.0, 103.0, 20)
     step = ExplicitStateStep(net, y).eval()
     clip = synthetic_clip((64, 96), 4, batch=2)
-    example = (*(clip[0][name] for name in ALL_INPUTS[:5]), *step.initial_state(2).tensors())
+    example = (*(clip[0][name] for name in input_names(net)[:5]), *step.initial_state(2, (64, 96)).tensors())
     exported = export(step, "torch", tmp_path / "baseline.pt2", example, {})
     assert exported.metadata["batch"] == 2
     differences = check(net, y, runner(exported.path, "torch"), clip)

@@ -1,5 +1,5 @@
-"""A trained SparseLaneSTP's streaming step as a file that runs without lanelab: its memory as
-explicit inputs and outputs (``state_in_*`` -> ``state_out_*``), a reset flag, and the lanes
+"""A trained SparseLaneSTP's or Bi²Lane's streaming step as a file that runs without lanelab: its
+memory as explicit inputs and outputs (``state_in_*`` -> ``state_out_*``), a reset flag, and the lanes
 decoded in the graph (:class:`lanelab.models.explicit_state.ExplicitStateStep` has the layout).
 
 Formats:
@@ -12,7 +12,8 @@ Formats:
 Both hold ``lanelab`` metadata (JSON; the .pt2's extra file ``lanelab.json``, the ONNX model's
 ``metadata_props``): the names and order of inputs and outputs, the image pipeline (size, crop,
 mean, std), the y grid of ``lanes``, the categories of ``logits``, the visibility threshold and
-lane NMS distance (NMS stays outside the graph: it is a loop over lanes), and the memory's size.
+lane NMS distance (NMS stays outside the graph: it is a loop over lanes), and the state's
+tensors (shape per stream, dtype).
 
 :func:`check` runs a written file over a clip, its state carried from frame to frame, beside
 ``step`` of the eager model, and returns the largest difference of every output.
@@ -26,7 +27,7 @@ import json
 import logging
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -37,20 +38,28 @@ from lanelab.atomic_file import atomic_output
 from lanelab.deploy.trained import TrainedDetector
 from lanelab.geometry import make_transform
 from lanelab.lanes import LANE_CATEGORY_IDS
-from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, STATE_NAMES, ExplicitStateStep, settle_ties
-from lanelab.models.memory_queue import MemoryQueue
+from lanelab.models.bi2lane import Bi2Lane
+from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 METADATA_KEY = "lanelab"
-STATE_IN = tuple(f"state_in_{name}" for name in STATE_NAMES)
-STATE_OUT = tuple(f"state_out_{name}" for name in STATE_NAMES)
-ALL_INPUTS, ALL_OUTPUTS = INPUT_NAMES + STATE_IN, OUTPUT_NAMES + STATE_OUT
+EXPORTABLE = (SparseLaneSTP, Bi2Lane)
 
 Frame = dict[str, Tensor]  # images, K, T_lane_cam, T_world_lane, reset; batch first
 
 
 class ExportError(RuntimeError):
     """The exporter could not write the model, or its check failed; the message says why."""
+
+
+def input_names(net: SparseLaneSTP | Bi2Lane) -> tuple[str, ...]:
+    """The graph's inputs in order: the frame's, then ``state_in_<name>`` of each state tensor."""
+    return INPUT_NAMES + tuple(f"state_in_{name}" for name in state_names(net))
+
+
+def output_names(net: SparseLaneSTP | Bi2Lane) -> tuple[str, ...]:
+    """The graph's outputs in order: the detections, then ``state_out_<name>``."""
+    return OUTPUT_NAMES + tuple(f"state_out_{name}" for name in state_names(net))
 
 
 @dataclass(frozen=True)
@@ -69,7 +78,8 @@ def export(step: ExplicitStateStep, fmt: str, out: str | Path, example: tuple[Te
     ``fmt`` to ``out``, atomically; ``metadata`` is added to the file's (see the module).
     ``check_with(path)`` runs on the written file before it takes its name (raise to refuse it:
     nothing is left then)."""
-    metadata = {**metadata, "inputs": list(ALL_INPUTS), "outputs": list(ALL_OUTPUTS), "batch": example[0].shape[0]}
+    metadata = {**metadata, "inputs": list(input_names(step.net)), "outputs": list(output_names(step.net)),
+                "batch": example[0].shape[0]}
     with atomic_output(out) as tmp:
         if fmt == "torch":
             program = torch.export.export(step, example)
@@ -85,13 +95,15 @@ def export(step: ExplicitStateStep, fmt: str, out: str | Path, example: tuple[Te
 
 def export_checkpoint(trained: TrainedDetector, fmt: str, out: str | Path, batch: int, check_frames: int,
                       tolerance: float) -> tuple[Exported, dict[str, float]]:
-    """Export a loaded checkpoint's SparseLaneSTP for ``batch`` streams; unless ``check_frames``
-    is 0, check the written file over a synthetic clip of that many frames against ``step``
-    (ExportError, and no file, when an output differs by more than ``tolerance``). Returns the
-    file and the largest difference of each output (empty without a check)."""
+    """Export a loaded checkpoint's detector (SparseLaneSTP or Bi²Lane) for ``batch`` streams;
+    unless ``check_frames`` is 0, check the written file over a synthetic clip of that many
+    frames against ``step`` (ExportError, and no file, when an output differs by more than
+    ``tolerance``). Returns the file and the largest difference of each output (empty without a
+    check)."""
     net = trained.net
-    if not isinstance(net, SparseLaneSTP):
-        raise ExportError(f"lanelab-export exports SparseLaneSTP; this checkpoint's detector is {type(net).__name__}")
+    if not isinstance(net, EXPORTABLE):
+        names = ", ".join(kind.__name__ for kind in EXPORTABLE)
+        raise ExportError(f"lanelab-export exports {names}; this checkpoint's detector is {type(net).__name__}")
     net, y = net.cpu().eval(), trained.y.cpu()
     settle_ties(net)  # the check's step() picks the keys the graph picks
     step = ExplicitStateStep(net, y).eval()
@@ -106,12 +118,14 @@ def export_checkpoint(trained: TrainedDetector, fmt: str, out: str | Path, batch
                               f"{check_frames} frames (check.tolerance={tolerance:g}); nothing written")
 
     example = example_inputs(step, image_size, batch)
-    exported = export(step, fmt, out, example, metadata_of(trained), check_file if check_frames else None)
+    metadata = metadata_of(trained, step.initial_state(1, image_size))
+    exported = export(step, fmt, out, example, metadata, check_file if check_frames else None)
     return exported, differences
 
 
-def metadata_of(trained: TrainedDetector) -> dict[str, Any]:
-    """What a deployment needs besides the graph (the module doc), from the checkpoint."""
+def metadata_of(trained: TrainedDetector, state: Any) -> dict[str, Any]:
+    """What a deployment needs besides the graph (the module doc), from the checkpoint and the
+    initial state of one stream (a QueueState or FrameState)."""
     net, module, resize = trained.net, trained.module, trained.resize
     data = trained.config["data"]
     return {
@@ -125,9 +139,11 @@ def metadata_of(trained: TrainedDetector) -> dict[str, Any]:
         "categories": [*LANE_CATEGORY_IDS, "background"],
         "visibility_threshold": module.metric_config.visibility_threshold,
         "nms_distance": module.nms_distance,
-        "memory": {"frames": net.num_memory_frames, "lines": net.num_memory_lines, "points": net.num_points,
-                   "channels": net.embed_dim},
+        "state": {field.name: {"shape": list(getattr(state, field.name).shape[1:]),
+                               "dtype": str(getattr(state, field.name).dtype).removeprefix("torch.")}
+                  for field in fields(state)},
     }
+
 
 def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path, metadata: dict[str, Any]) -> int:
     """Write ``step`` traced with ``example`` as an ONNX file at ``path`` with ``metadata``
@@ -141,8 +157,8 @@ def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path,
     with contextlib.redirect_stdout(io.StringIO()), _quiet("torch.onnx", "onnxscript", "onnx_ir"), \
             warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
-        torch.onnx.export(step, example, str(path), dynamo=True, input_names=list(ALL_INPUTS),
-                          output_names=list(ALL_OUTPUTS), external_data=False, verbose=False)  # fmt: skip
+        torch.onnx.export(step, example, str(path), dynamo=True, input_names=list(input_names(step.net)),
+                          output_names=list(output_names(step.net)), external_data=False, verbose=False)  # fmt: skip
     model = onnx.load(str(path))
     entry = model.metadata_props.add()
     entry.key, entry.value = METADATA_KEY, json.dumps(metadata)
@@ -167,7 +183,7 @@ def example_inputs(step: ExplicitStateStep, image_size: Sequence[int], batch: in
     """Inputs of the right shapes and dtypes for tracing: the first frame of :func:`synthetic_clip`
     and an empty memory."""
     frame = synthetic_clip(image_size, 1, batch)[0]
-    return (*(frame[name] for name in INPUT_NAMES), *step.initial_state(batch).tensors())
+    return (*(frame[name] for name in INPUT_NAMES), *step.initial_state(batch, tuple(image_size)).tensors())
 
 
 def synthetic_clip(image_size: Sequence[int], num_frames: int, batch: int, seed: int = 0) -> list[Frame]:
@@ -196,8 +212,8 @@ def synthetic_clip(image_size: Sequence[int], num_frames: int, batch: int, seed:
 
 
 def runner(path: str | Path, fmt: str) -> Callable[..., tuple[Tensor, ...]]:
-    """A function running the written file on the CPU: tensors in ``ALL_INPUTS`` order ->
-    tensors in ``ALL_OUTPUTS`` order (onnxruntime for ONNX)."""
+    """A function running the written file on the CPU: its inputs' tensors in order -> its
+    outputs' (onnxruntime for ONNX)."""
     if fmt == "torch":
         with open(path, "rb") as handle:
             module = torch.export.load(handle).module()
@@ -208,22 +224,25 @@ def runner(path: str | Path, fmt: str) -> Callable[..., tuple[Tensor, ...]]:
         raise ExportError("checking an ONNX file needs onnxruntime: pip install 'lanelab[export]' "
                           "(or check.frames=0 to export without the check)") from None
     session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    names = [i.name for i in session.get_inputs()], [o.name for o in session.get_outputs()]
 
     def run(*inputs: Tensor) -> tuple[Tensor, ...]:
-        outputs = session.run(list(ALL_OUTPUTS), {name: t.cpu().numpy() for name, t in zip(ALL_INPUTS, inputs)})
+        outputs = session.run(names[1], {name: t.cpu().numpy() for name, t in zip(names[0], inputs)})
         return tuple(torch.from_numpy(output) for output in outputs)
 
     return run
 
 
-def check(net: SparseLaneSTP, y: Tensor, run: Callable[..., tuple[Tensor, ...]], clip: Sequence[Frame]) -> dict[str, float]:
+def check(net: SparseLaneSTP | Bi2Lane, y: Tensor, run: Callable[..., tuple[Tensor, ...]],
+          clip: Sequence[Frame]) -> dict[str, float]:
     """Run the exported step ``run`` over ``clip`` (its state carried from frame to frame) and
-    ``net.step`` beside it (its own memory queue); the largest absolute difference of each
-    output and state tensor over the clip."""
-    memory = MemoryQueue(net.num_memory_frames, net.num_memory_lines)
-    state = memory.empty_state(clip[0]["images"].shape[0], net.num_points, net.embed_dim).tensors()
-    worst = dict.fromkeys(ALL_OUTPUTS, 0.0)
+    ``net.step_with`` beside it (a memory object of its own); the largest absolute difference of
+    each output and state tensor over the clip, by name."""
     net = net.eval()
+    memory = net.new_memory()
+    images = clip[0]["images"]
+    state = net.empty_memory_state(images.shape[0], tuple(images.shape[-2:])).tensors()
+    worst = dict.fromkeys(output_names(net), 0.0)
     for frame in clip:
         with torch.inference_mode():
             reference = net.step_with(memory, frame)
@@ -231,7 +250,7 @@ def check(net: SparseLaneSTP, y: Tensor, run: Callable[..., tuple[Tensor, ...]],
         kept = memory.state()
         expected += list(kept.tensors()) if kept is not None else list(state)  # no memory: the state passes through
         outputs = run(*(frame[name] for name in INPUT_NAMES), *state)
-        for name, got, want in zip(ALL_OUTPUTS, outputs, expected):
+        for name, got, want in zip(worst, outputs, expected):
             difference = (got.detach().double().cpu() - want.detach().double().cpu()).abs()
             worst[name] = max(worst[name], float(difference.max()) if difference.numel() else 0.0)
         state = outputs[len(OUTPUT_NAMES):]

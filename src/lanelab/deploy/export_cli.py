@@ -1,5 +1,5 @@
-"""``lanelab-export``: a trained SparseLaneSTP's streaming step as an ONNX or torch.export file,
-its memory as explicit inputs and outputs (layout: :mod:`lanelab.models.explicit_state`).
+"""``lanelab-export``: a trained SparseLaneSTP's or Bi²Lane's streaming step as an ONNX or
+torch.export file, its memory as explicit inputs and outputs (layout: :mod:`lanelab.models.explicit_state`).
 
     lanelab-export checkpoint=FILE format=onnx|torch out=FILE [batch_size=1] [check.frames=20] [check.tolerance=1e-4]
 
@@ -39,10 +39,12 @@ def run(cfg: ExportConfig) -> int:
         return 1
     meta = exported.metadata
     opset = f", ONNX opset {exported.opset}" if exported.opset is not None else ""
-    print(f"{NAME}: wrote {exported.path} ({exported.format}{opset}, {meta['batch']} stream(s) of "
-          f"{meta['image_size'][0]}x{meta['image_size'][1]} images; memory of {meta['memory']['frames']} frames)")
+    print(f"{NAME}: wrote {exported.path} ({meta['model']}, {exported.format}{opset}, {meta['batch']} stream(s) "
+          f"of {meta['image_size'][0]}x{meta['image_size'][1]} images)")
     print(f"  inputs:  {', '.join(meta['inputs'])}")
     print(f"  outputs: {', '.join(meta['outputs'])}")
+    for name, tensor in meta["state"].items():
+        print(f"  state {name}: {tensor['dtype']} (B, {', '.join(map(str, tensor['shape']))})")
     if differences:
         print(f"  check over {cfg.check.frames} frames against step(), largest |difference| (tolerance "
               f"{cfg.check.tolerance:g}):")

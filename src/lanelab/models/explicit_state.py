@@ -1,51 +1,60 @@
-"""SparseLaneSTP's streaming step with its memory as explicit tensors: the graph that
+"""A detector's streaming step with its memory as explicit tensors: the graph that
 ``lanelab-export`` writes (torch.export, ONNX), which holds no Python state.
 
     (images, K, T_lane_cam, T_world_lane, reset, *state_in) -> (points, logits, lanes, *state_out)
 
-One call is one ``SparseLaneSTP.step`` of B streams: the memory queue is rebuilt from
-``state_in`` (:class:`~lanelab.models.memory_queue.QueueState`: embeddings, points, poses,
-valid), emptied where ``reset`` is True, read and pushed as ``step`` does, and handed back as
-``state_out``; the caller feeds ``state_out`` into the next call. ``initial_state`` is the
+One call is one ``step`` of B streams of a detector with a streaming memory object
+(SparseLaneSTP's :class:`~lanelab.models.memory_queue.MemoryQueue`, Bi²Lane's
+:class:`~lanelab.models.bi2lane.frame_cache.FrameCache`): the memory is rebuilt from
+``state_in``, emptied where ``reset`` is True, read and pushed as ``step`` does, and handed back
+as ``state_out``; the caller feeds ``state_out`` into the next call. ``initial_state`` is the
 state of an empty memory (a first frame must also set ``reset``, as every clip start does).
 
-Inputs and outputs (B streams, N lines, M control points, K categories, S lane samples at the
-y grid ``y``; T memory frames of N_mem lines of C channels):
+Inputs and outputs (B streams, N lines or anchors, M points, K categories, S lane samples at
+the y grid ``y``):
 
 - images (B, 3, H, W) float32: normalised RGB, as the data pipeline makes it;
 - K (B, 3, 3) float32: intrinsics of the images as given; T_lane_cam (B, 4, 4) float32;
 - T_world_lane (B, 4, 4) float64: the ego pose;
 - reset (B,) bool: a clip starts, empty the memory first;
-- points (B, N, M, 4) float32: the last layer's control points (x, y, z, v), metres;
+- points (B, N, M, 4) float32: the predicted points (x, y, z, v), metres (SparseLaneSTP: the
+  last layer's control points; Bi²Lane: every anchor's proposal at the anchors' y);
 - logits (B, N, K + 1) float32: class logits, background last;
 - lanes (B, N, S, 4) float32: the lines decoded at ``y``, (x, y, z, v);
-- the state, in and out alike (:class:`~lanelab.models.memory_queue.QueueState`, slot 0 the
-  newest frame): embeddings (B, T, N_mem, M, C) float32, points (B, T, N_mem, M, 4) float32
-  (each slot in its own frame's lane frame), poses (B, T, 4, 4) float64 (T_world_lane of each
-  slot's frame), valid (B, T) bool.
+- the state, in and out alike, :func:`state_names` in order:
+  - SparseLaneSTP (:class:`~lanelab.models.memory_queue.QueueState`, T memory frames of N_mem
+    lines of C channels, slot 0 the newest frame): embeddings (B, T, N_mem, M, C) float32,
+    points (B, T, N_mem, M, 4) float32 (each slot in its own frame's lane frame), poses
+    (B, T, 4, 4) float64 (T_world_lane of each slot's frame), valid (B, T) bool;
+  - Bi²Lane (:class:`~lanelab.models.bi2lane.frame_cache.FrameState`, the N_h past frames,
+    oldest first): features (B, N_h, C, h, w) float32, K (B, N_h, 3, 3) float32, T_lane_cam
+    (B, N_h, 4, 4) float32, T_world_lane (B, N_h, 4, 4) float64, valid (B, N_h) bool.
 
-The spatio-temporal attention runs its dense implementation, the sparse one's reference: the
-same keys and the same result (:mod:`lanelab.models.spatio_temporal_attention`); the sparse
-one sizes its key band from the data (a Python int), which a static graph cannot hold. Its
-parallel neighbours settle near-ties for the earlier point (:func:`settle_ties`), so that every
-backend picks the same keys; a module the graph is checked against must settle them alike.
+SparseLaneSTP's spatio-temporal attention runs its dense implementation, the sparse one's
+reference: the same keys and the same result (:mod:`lanelab.models.spatio_temporal_attention`);
+the sparse one sizes its key band from the data (a Python int), which a static graph cannot
+hold. Its parallel neighbours settle near-ties for the earlier point (:func:`settle_ties`), so
+that every backend picks the same keys; a module the graph is checked against must settle
+them alike. Bi²Lane makes no such choices.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import torch
 from torch import Tensor, nn
 
-from lanelab.models.memory_queue import MemoryQueue, QueueState
+from lanelab.models.bi2lane import Bi2Lane
+from lanelab.models.bi2lane.frame_cache import FrameState
+from lanelab.models.memory_queue import QueueState
 from lanelab.models.sparselanestp import SparseLaneSTP
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
 from lanelab.models.sta_masks import PNA_TIE_MARGIN_M
 
 INPUT_NAMES = ("images", "K", "T_lane_cam", "T_world_lane", "reset")
 OUTPUT_NAMES = ("points", "logits", "lanes")
-STATE_NAMES = ("embeddings", "points", "poses", "valid")  # QueueState's fields, in its order
 
 
 def settle_ties(net: nn.Module, margin: float = PNA_TIE_MARGIN_M) -> None:
@@ -57,11 +66,16 @@ def settle_ties(net: nn.Module, margin: float = PNA_TIE_MARGIN_M) -> None:
             module.pna_tie_margin = margin
 
 
-class ExplicitStateStep(nn.Module):
-    """net: a SparseLaneSTP (copied; the copy's attention set to dense, its ties settled); y (S,):
-    metres, where ``lanes`` samples the lines."""
+def state_names(net: SparseLaneSTP | Bi2Lane) -> tuple[str, ...]:
+    """The names of a detector's streaming state tensors, in order: its memory's State fields."""
+    return tuple(field.name for field in dataclasses.fields(type(net.new_memory()).State))
 
-    def __init__(self, net: SparseLaneSTP, y: Tensor) -> None:
+
+class ExplicitStateStep(nn.Module):
+    """net: a SparseLaneSTP or Bi2Lane (copied; a SparseLaneSTP's attention set to dense, its
+    ties settled); y (S,): metres, where ``lanes`` samples the lines."""
+
+    def __init__(self, net: SparseLaneSTP | Bi2Lane, y: Tensor) -> None:
         super().__init__()
         self.net = copy.deepcopy(net)
         settle_ties(self.net)
@@ -69,30 +83,21 @@ class ExplicitStateStep(nn.Module):
             if isinstance(module, SpatioTemporalAttention) and module.impl == "sparse":
                 module.impl = "dense"
         self.register_buffer("y", torch.as_tensor(y, dtype=torch.float32), persistent=False)
+        self.state_type = type(self.net.new_memory()).State
 
-    def _queue(self) -> MemoryQueue:
-        return MemoryQueue(self.net.num_memory_frames, self.net.num_memory_lines)
-
-    def initial_state(self, batch: int, device: torch.device | str | None = None) -> QueueState:
-        """The state of an empty memory for ``batch`` streams."""
-        return self._queue().empty_state(batch, self.net.num_points, self.net.embed_dim, device=device)
+    def initial_state(
+        self, batch: int, image_size: tuple[int, int], device: torch.device | str | None = None
+    ) -> QueueState | FrameState:
+        """The state of an empty memory for ``batch`` streams of images of image_size (H, W)."""
+        return self.net.empty_memory_state(batch, image_size, device)
 
     def forward(
-        self,
-        images: Tensor,
-        K: Tensor,
-        T_lane_cam: Tensor,
-        T_world_lane: Tensor,
-        reset: Tensor,
-        embeddings: Tensor,
-        points: Tensor,
-        poses: Tensor,
-        valid: Tensor,
+        self, images: Tensor, K: Tensor, T_lane_cam: Tensor, T_world_lane: Tensor, reset: Tensor, *state: Tensor
     ) -> tuple[Tensor, ...]:
-        """One streaming step (shapes in the module doc): (points, logits, lanes, embeddings,
-        points, poses, valid), the last four the state after this frame."""
-        memory = self._queue()
-        memory.load(QueueState(embeddings, points, poses, valid))
+        """One streaming step (shapes in the module doc): (points, logits, lanes, *state), the
+        state after this frame."""
+        memory = self.net.new_memory()
+        memory.load(self.state_type(*state))
         frame = {"images": images, "K": K, "T_lane_cam": T_lane_cam, "T_world_lane": T_world_lane, "reset": reset}
         outputs = self.net.step_with(memory, frame)
         lanes = self.net.decode(outputs, self.y)

@@ -66,6 +66,8 @@ class MemoryQueue:
     """FIFO of the num_lines (N_mem) most confident lines of each of the past num_frames (T)
     frames. A plain object without parameters; its buffers are allocated at the first push."""
 
+    State = QueueState
+
     def __init__(self, num_frames: int, num_lines: int) -> None:
         if num_frames < 0 or num_lines < 1:
             raise ValueError(f"need num_frames >= 0 and num_lines >= 1, got {num_frames}, {num_lines}")

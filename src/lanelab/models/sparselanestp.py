@@ -47,7 +47,7 @@ from lanelab.models.fpn import FPN
 from lanelab.models.ground_encoding import GroundPositionalEncoding
 from lanelab.models.heads import LaneHead
 from lanelab.models.lateral_search import LateralSearch
-from lanelab.models.memory_queue import MemoryQueue
+from lanelab.models.memory_queue import MemoryQueue, QueueState
 from lanelab.models.positional_encoding import PointPositionalEncoding
 from lanelab.models.query_init import LaneQueryGenerator
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
@@ -162,7 +162,7 @@ class SparseLaneSTP(nn.Module):
         )
         self.num_memory_frames, self.num_memory_lines = num_memory_frames, num_memory_lines
         self.embed_dim, self.num_points = embed_dim, num_points
-        self._stream = MemoryQueue(num_memory_frames, num_memory_lines)  # the streaming state
+        self._stream = self.new_memory()  # the streaming state
 
     @property
     def head(self) -> LaneHead:
@@ -192,7 +192,7 @@ class SparseLaneSTP(nn.Module):
                 encoded = self._encode(images[:, :-1], batch["K"][:, :-1], batch["T_lane_cam"][:, :-1])
             encoded += self._encode(images[:, -1:], batch["K"][:, -1:], batch["T_lane_cam"][:, -1:])
 
-        memory = MemoryQueue(self.num_memory_frames, self.num_memory_lines)
+        memory = self.new_memory()
         outputs = []
         for f in range(F):
             if f > 0:  # the frame after padding starts a clip: it sees an empty memory
@@ -244,6 +244,16 @@ class SparseLaneSTP(nn.Module):
         return self._decode(
             encoded, frame["K"], frame["T_lane_cam"], frame["T_world_lane"], tuple(images.shape[-2:]), memory
         )
+
+    def new_memory(self) -> MemoryQueue:
+        """An empty streaming state of this model: its memory queue."""
+        return MemoryQueue(self.num_memory_frames, self.num_memory_lines)
+
+    def empty_memory_state(
+        self, batch: int, image_size: tuple[int, int], device: torch.device | str | None = None
+    ) -> QueueState:
+        """The state of an empty memory for ``batch`` streams (of any image size)."""
+        return self.new_memory().empty_state(batch, self.num_points, self.embed_dim, device=device)
 
     def anchors(self) -> Tensor | None:
         """The lines' lateral anchors x (N,), metres; None when the model has none."""

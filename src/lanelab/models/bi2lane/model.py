@@ -40,7 +40,7 @@ from lanelab.models.backbone import ResNet
 from lanelab.models.bi2lane.aggregation import BiLevelAggregation
 from lanelab.models.bi2lane.anchors import anchor_families
 from lanelab.models.bi2lane.bev import BEVSegmentation
-from lanelab.models.bi2lane.frame_cache import FrameCache
+from lanelab.models.bi2lane.frame_cache import FrameCache, FrameState
 from lanelab.models.bi2lane.refinement import TemporalRefinement, refine
 from lanelab.models.cuda_graph import CUDAGraphed
 from lanelab.models.fpn import FPN
@@ -139,7 +139,7 @@ class Bi2Lane(nn.Module):
             nn.init.zeros_(branch[-1].weight)
             nn.init.zeros_(branch[-1].bias)
         self.bev = None if bev is None else BEVSegmentation(embed_dim, **bev)
-        self._stream = FrameCache(num_history_frames + 1)
+        self._stream = self.new_memory()
         self.cuda_graphs = cuda_graphs
         self._graphed: tuple[CUDAGraphed, CUDAGraphed] | None = None  # (encode, detect), made at first use
 
@@ -174,14 +174,31 @@ class Bi2Lane(nn.Module):
             bev_logits       (B, rows, columns) lane-mask logits of the BEV branch, with bev_x
                              (columns,) and bev_y (rows,), the cells' centres (training only)
         """
+        return self.step_with(self._stream, frame)
+
+    def step_with(self, cache: FrameCache, frame: Mapping[str, Tensor]) -> dict[str, Any]:
+        """``step`` against the given frame cache instead of the model's own (an exported graph
+        carries its cache as tensors: lanelab.models.explicit_state)."""
         if "reset" in frame:
-            self.reset(frame["reset"])
+            cache.reset(frame["reset"])
         images = frame["images"]
         encode, detect = self._streaming_calls(images)
         features = encode(images[:, None])[:, 0]
-        window = self._stream.push(features, frame["K"], frame["T_lane_cam"], frame["T_world_lane"])
+        window = cache.push(features, frame["K"], frame["T_lane_cam"], frame["T_world_lane"])
         cameras = (window[key] for key in ("K", "T_lane_cam", "T_world_lane", "valid"))
         return detect(window["features"], *cameras, tuple(images.shape[-2:]))
+
+    def new_memory(self) -> FrameCache:
+        """An empty streaming state of this model: the cache of its N past frames."""
+        return FrameCache(self.num_history_frames + 1)
+
+    def empty_memory_state(
+        self, batch: int, image_size: tuple[int, int], device: torch.device | str | None = None
+    ) -> FrameState:
+        """The state of an empty cache for ``batch`` streams of images of image_size (H, W)."""
+        with torch.no_grad():  # the feature map's size, as the encoder makes it
+            probe = self._encode(torch.zeros(1, 1, 3, *image_size, device=self.anchors.device))
+        return self.new_memory().empty_state(batch, tuple(probe.shape[2:]), device)
 
     # ------------------------------------------------------------------ decoding
     def decode(self, outputs: Mapping[str, Any], y: Tensor) -> Tensor:
