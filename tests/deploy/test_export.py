@@ -130,6 +130,19 @@ def test_a_single_frame_model_exports_without_memory(tmp_path: Path) -> None:
     assert max(differences.values()) <= TOLERANCE, differences
 
 
+def test_the_cli_exports_a_bi2lane_checkpoint_and_says_what_it_wrote(bi2lane_checkpoint: Path, tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "bi2lane.pt2"
+    assert run(load_export_config([f"checkpoint={bi2lane_checkpoint}", "format=torch", f"out={out}", "check.frames=4"])) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote {out} (Bi2Lane, torch, 1 stream(s) of 64x96 images)" in printed
+    assert "state features: float32 (B, 3, 32, 8, 12)" in printed and "state valid: bool (B, 3)" in printed
+    checked = [line.split() for line in printed.splitlines() if line.startswith("    ")]
+    assert [name for name, _ in checked] == list(output_names(load_trained(bi2lane_checkpoint, "cpu").net))
+    assert max(float(value) for _, value in checked) <= TOLERANCE
+    assert out.exists()
+
+
 def test_a_failed_check_writes_nothing(checkpoint: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "model.pt2"
     options = [f"checkpoint={checkpoint}", "format=torch", f"out={out}", "check.frames=3", "check.tolerance=1e-30"]
