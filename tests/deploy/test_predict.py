@@ -233,3 +233,14 @@ def test_bad_logs_are_one_line_each_naming_the_file_and_the_others_are_predicted
     assert f"{logs / 'corrupt.mcap'}: not an MCAP file" in errors[0]
     assert f"{logs / 'no_tf.mcap'}: missing required topic /tf" in errors[1]
     assert sorted(p.name for p in out.iterdir()) == [good.with_suffix(".mcap").name, good.with_suffix(".png").name]
+
+
+def test_a_bi2lane_checkpoint_predicts_a_log_with_its_frame_cache(bi2lane_checkpoint: Path, synth_log,
+                                                                  tmp_path: Path) -> None:
+    assert predict(bi2lane_checkpoint, synth_log("foxglove-protobuf"), tmp_path) == 0
+    (written,) = tmp_path.glob("*.mcap")
+    _, messages = read_mcap(written)
+    images = sorted(image_stamp(m) for m in messages if m.topic == IMAGE)
+    scenes = [as_foxglove(m, SceneUpdate) for m in messages if m.topic == SCENE]
+    assert len(images) == 20 and sorted(stamp(scene.entities[0]) for scene in scenes) == images
+    assert sum(message.topic == LANES for message in messages) == 20
