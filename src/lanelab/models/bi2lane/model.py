@@ -196,8 +196,11 @@ class Bi2Lane(nn.Module):
         self, batch: int, image_size: tuple[int, int], device: torch.device | str | None = None
     ) -> FrameState:
         """The state of an empty cache for ``batch`` streams of images of image_size (H, W)."""
-        with torch.no_grad():  # the feature map's size, as the encoder makes it
+        training = self.training
+        self.eval()  # the feature map's size, as the encoder makes it, without touching batch-norm statistics
+        with torch.no_grad():
             probe = self._encode(torch.zeros(1, 1, 3, *image_size, device=self.anchors.device))
+        self.train(training)
         return self.new_memory().empty_state(batch, tuple(probe.shape[2:]), device)
 
     # ------------------------------------------------------------------ decoding
