@@ -39,7 +39,9 @@ from lanelab.deploy.trained import TrainedDetector
 from lanelab.geometry import make_transform
 from lanelab.lanes import LANE_CATEGORY_IDS
 from lanelab.models.bi2lane import Bi2Lane
+from lanelab.models.bi2lane.frame_cache import FrameState
 from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
+from lanelab.models.memory_queue import QueueState
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 METADATA_KEY = "lanelab"
@@ -123,9 +125,9 @@ def export_checkpoint(trained: TrainedDetector, fmt: str, out: str | Path, batch
     return exported, differences
 
 
-def metadata_of(trained: TrainedDetector, state: Any) -> dict[str, Any]:
+def metadata_of(trained: TrainedDetector, state: QueueState | FrameState) -> dict[str, Any]:
     """What a deployment needs besides the graph (the module doc), from the checkpoint and the
-    initial state of one stream (a QueueState or FrameState)."""
+    initial state of one stream."""
     net, module, resize = trained.net, trained.module, trained.resize
     data = trained.config["data"]
     return {
