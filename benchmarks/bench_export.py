@@ -34,7 +34,7 @@ import torch
 import bench_bi2lane
 import bench_sparselanestp
 
-from lanelab.deploy.export import example_inputs, input_names, synthetic_clip, write_onnx
+from lanelab.deploy.export import example_inputs, graph_names, input_names, synthetic_clip, write_onnx
 from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties
 from lanelab.models.sparselanestp import SparseLaneSTP
 
@@ -78,7 +78,7 @@ def runners(config: str, device: torch.device, folder: Path) -> tuple[dict[str, 
 
         def call(frame: dict) -> torch.Tensor:
             outputs = run(*(frame[name] for name in INPUT_NAMES), *state)
-            state[:] = outputs[len(OUTPUT_NAMES):]
+            state[:] = outputs[len(OUTPUT_NAMES) : len(OUTPUT_NAMES) + len(state)]  # the picks follow
             return outputs[2]
 
         return call
@@ -92,7 +92,8 @@ def runners(config: str, device: torch.device, folder: Path) -> tuple[dict[str, 
         return variants, seconds, image_size
     start = time.perf_counter()
     cpu_step = ExplicitStateStep(net.cpu(), Y).eval() if device.type != "cpu" else step
-    write_onnx(cpu_step, tuple(t.cpu() for t in example), folder / "model.onnx", {})
+    cpu_example = tuple(t.cpu() for t in example)
+    write_onnx(cpu_step, cpu_example, folder / "model.onnx", graph_names(cpu_step, cpu_example))
     net.to(device)
     seconds["onnxruntime"] = time.perf_counter() - start
     providers = ["CPUExecutionProvider"]

@@ -59,7 +59,7 @@ def test_the_exported_step_equals_step_over_a_clip_with_memory(fmt: str, suffix:
     trained = load_trained(checkpoint, "cpu")
     exported, _ = export_checkpoint(trained, fmt, tmp_path / f"model{suffix}", batch=1, check_frames=0, tolerance=TOLERANCE)
     clip = log_clip(checkpoint, synth_log("foxglove-protobuf"))
-    state = check_carried_memory(trained, exported.path, fmt, clip)
+    state = check_carried_memory(trained, exported.path, fmt, clip, num_picks=2 * 2 + 1)  # PNA, TCA per layer; memory
     assert bool(state[3].all())  # every memory slot filled at the end
     metadata = read_metadata(exported.path, fmt)
     assert metadata["y"] == trained.y.tolist() and metadata["image_size"] == [64, 96]
@@ -77,7 +77,7 @@ def test_the_exported_bi2lane_equals_its_step_with_its_frame_cache(fmt: str, suf
     exported, _ = export_checkpoint(trained, fmt, tmp_path / f"bi2lane{suffix}", batch=1, check_frames=0,
                                     tolerance=TOLERANCE)  # fmt: skip
     clip = log_clip(bi2lane_checkpoint, synth_log("foxglove-protobuf"))
-    state = check_carried_memory(trained, exported.path, fmt, clip)
+    state = check_carried_memory(trained, exported.path, fmt, clip, num_picks=0)
     assert bool(state[4].all())  # every cached frame real at the end (8 frames since the reset)
     metadata = read_metadata(exported.path, fmt)
     assert metadata["model"] == "Bi2Lane" and metadata["outputs"][:3] == ["points", "logits", "lanes"]
@@ -85,26 +85,30 @@ def test_the_exported_bi2lane_equals_its_step_with_its_frame_cache(fmt: str, suf
     assert metadata["state"]["T_world_lane"] == {"shape": [3, 4, 4], "dtype": "float64"}
 
 
-def check_carried_memory(trained, path: Path, fmt: str, clip: list[dict[str, torch.Tensor]]) -> tuple[torch.Tensor, ...]:
-    """The file equals step() over the clip; its memory matters (carried, the lanes after the
-    first frame differ from a reset's); its inputs and outputs are named. The final state."""
+def check_carried_memory(trained, path: Path, fmt: str, clip: list[dict[str, torch.Tensor]],
+                         num_picks: int) -> tuple[torch.Tensor, ...]:
+    """The file equals step() over the clip, its picks those step() would make (up to ties); its
+    memory matters (carried, the lanes after the first frame differ from a reset's); its inputs
+    and outputs are named. The final state."""
     run_file = runner(path, fmt)
     differences = check(trained.net, trained.y, run_file, clip)
-    assert set(differences) == set(output_names(trained.net))
+    names = output_names(trained.net, num_picks)
+    assert set(differences) == set(names[: len(names) - num_picks]) | ({"picks"} if num_picks else set())
     assert max(differences.values()) <= TOLERANCE, differences
     state = ExplicitStateStep(trained.net, trained.y).initial_state(1, (64, 96)).tensors()
     carried, fresh = [], []
     for frame in clip:
         inputs = [frame[name] for name in input_names(trained.net)[:5]]
         outputs = run_file(*inputs, *state)
-        state = outputs[3:]
+        assert len(outputs) == len(names)
+        state = outputs[3 : 3 + len(state)]
         carried.append(outputs[2])
         fresh.append(run_file(*inputs[:4], torch.tensor([True]), *state)[2])
     assert max(float((a - b).abs().max()) for a, b in zip(carried[1:], fresh[1:])) > 10 * TOLERANCE
     if fmt == "onnx":
         session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
         assert [i.name for i in session.get_inputs()] == list(input_names(trained.net))
-        assert [o.name for o in session.get_outputs()] == list(output_names(trained.net))
+        assert [o.name for o in session.get_outputs()] == list(names)
     return state
 
 
@@ -138,7 +142,7 @@ def test_the_cli_exports_a_bi2lane_checkpoint_and_says_what_it_wrote(bi2lane_che
     assert f"wrote {out} (Bi2Lane, torch, 1 stream(s) of 64x96 images)" in printed
     assert "state features: float32 (B, 3, 32, 8, 12)" in printed and "state valid: bool (B, 3)" in printed
     checked = [line.split() for line in printed.splitlines() if line.startswith("    ")]
-    assert [name for name, _ in checked] == list(output_names(load_trained(bi2lane_checkpoint, "cpu").net))
+    assert [name for name, _ in checked] == list(output_names(load_trained(bi2lane_checkpoint, "cpu").net))  # no picks
     assert max(float(value) for _, value in checked) <= TOLERANCE
     assert out.exists()
 

@@ -26,6 +26,8 @@ def test_explicit_state_steps_as_step_does_resets_included() -> None:
             inputs = {**frame(batch, f), "reset": resets[f]}
             expected = net.step(inputs)
             points, logits, lanes, *state = explicit(*(inputs[k] for k in ("images", "K", "T_lane_cam", "T_world_lane", "reset")), *state)
+            state, picks = state[:4], state[4:]
+            assert len(picks) == 2 * 2 + 1  # per decoder layer PNA and TCA, then the memory's lines
             torch.testing.assert_close(points, expected["points"][-1], atol=1e-5, rtol=0)
             torch.testing.assert_close(logits, expected["logits"][-1], atol=1e-5, rtol=0)
             torch.testing.assert_close(lanes, net.decode(expected, y), atol=1e-5, rtol=0)

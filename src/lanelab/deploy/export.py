@@ -16,7 +16,8 @@ lane NMS distance (NMS stays outside the graph: it is a loop over lanes), and th
 tensors (shape per stream, dtype).
 
 :func:`check` runs a written file over a clip, its state carried from frame to frame, beside
-``step`` of the eager model, and returns the largest difference of every output.
+``step`` of the eager model with the graph's discrete choices replayed, and returns the largest
+difference of every output and how near a tie every choice the graph made differently was.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from lanelab.lanes import LANE_CATEGORY_IDS
 from lanelab.models.bi2lane import Bi2Lane
 from lanelab.models.bi2lane.frame_cache import FrameState
 from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
+from lanelab.models.ranking import forcing_picks
 from lanelab.models.memory_queue import QueueState
 from lanelab.models.sparselanestp import SparseLaneSTP
 
@@ -59,9 +61,19 @@ def input_names(net: SparseLaneSTP | Bi2Lane) -> tuple[str, ...]:
     return INPUT_NAMES + tuple(f"state_in_{name}" for name in state_names(net))
 
 
-def output_names(net: SparseLaneSTP | Bi2Lane) -> tuple[str, ...]:
-    """The graph's outputs in order: the detections, then ``state_out_<name>``."""
-    return OUTPUT_NAMES + tuple(f"state_out_{name}" for name in state_names(net))
+def output_names(net: SparseLaneSTP | Bi2Lane, num_picks: int = 0) -> tuple[str, ...]:
+    """The graph's outputs in order: the detections, ``state_out_<name>``, then ``pick_<i>`` of
+    the step's num_picks top-k choices (lanelab.models.explicit_state)."""
+    state = tuple(f"state_out_{name}" for name in state_names(net))
+    return OUTPUT_NAMES + state + tuple(f"pick_{i}" for i in range(num_picks))
+
+
+def graph_names(step: ExplicitStateStep, example: tuple[Tensor, ...]) -> dict[str, list[str]]:
+    """{"inputs": [...], "outputs": [...]}: the names of the graph of ``step`` traced with
+    ``example`` (one eager call counts the picks, which depend on the model's configuration)."""
+    with torch.no_grad():
+        num_picks = len(step(*example)) - len(output_names(step.net))
+    return {"inputs": list(input_names(step.net)), "outputs": list(output_names(step.net, num_picks))}
 
 
 @dataclass(frozen=True)
@@ -80,8 +92,7 @@ def export(step: ExplicitStateStep, fmt: str, out: str | Path, example: tuple[Te
     ``fmt`` to ``out``, atomically; ``metadata`` is added to the file's (see the module).
     ``check_with(path)`` runs on the written file before it takes its name (raise to refuse it:
     nothing is left then)."""
-    metadata = {**metadata, "inputs": list(input_names(step.net)), "outputs": list(output_names(step.net)),
-                "batch": example[0].shape[0]}
+    metadata = {**metadata, **graph_names(step, example), "batch": example[0].shape[0]}
     with atomic_output(out) as tmp:
         if fmt == "torch":
             program = torch.export.export(step, example)
@@ -149,7 +160,8 @@ def metadata_of(trained: TrainedDetector, state: QueueState | FrameState) -> dic
 
 def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path, metadata: dict[str, Any]) -> int:
     """Write ``step`` traced with ``example`` as an ONNX file at ``path`` with ``metadata``
-    under the ``lanelab`` key; the opset the exporter chose."""
+    under the ``lanelab`` key (its "inputs" and "outputs" name the graph's: :func:`graph_names`);
+    the opset the exporter chose."""
     try:
         import onnx
     except ImportError:
@@ -159,8 +171,8 @@ def write_onnx(step: ExplicitStateStep, example: tuple[Tensor, ...], path: Path,
     with contextlib.redirect_stdout(io.StringIO()), _quiet("torch.onnx", "onnxscript", "onnx_ir"), \
             warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
-        torch.onnx.export(step, example, str(path), dynamo=True, input_names=list(input_names(step.net)),
-                          output_names=list(output_names(step.net)), external_data=False, verbose=False)  # fmt: skip
+        torch.onnx.export(step, example, str(path), dynamo=True, input_names=metadata["inputs"],
+                          output_names=metadata["outputs"], external_data=False, verbose=False)  # fmt: skip
     model = onnx.load(str(path))
     entry = model.metadata_props.add()
     entry.key, entry.value = METADATA_KEY, json.dumps(metadata)
@@ -238,22 +250,30 @@ def runner(path: str | Path, fmt: str) -> Callable[..., tuple[Tensor, ...]]:
 def check(net: SparseLaneSTP | Bi2Lane, y: Tensor, run: Callable[..., tuple[Tensor, ...]],
           clip: Sequence[Frame]) -> dict[str, float]:
     """Run the exported step ``run`` over ``clip`` (its state carried from frame to frame) and
-    ``net.step_with`` beside it (a memory object of its own); the largest absolute difference of
-    each output and state tensor over the clip, by name."""
+    ``net.step_with`` beside it, with a memory object of its own and the graph's picks replayed
+    (:func:`lanelab.models.ranking.forcing_picks`). The largest absolute difference of each
+    output and state tensor over the clip, by name, and under "picks" (models that pick) the
+    largest relative gap between a pick of the graph and the eager step's own choice: near 0
+    where they chose alike or between near-tied candidates."""
     net = net.eval()
-    memory = net.new_memory()
     images = clip[0]["images"]
-    state = net.empty_memory_state(images.shape[0], tuple(images.shape[-2:])).tensors()
-    worst = dict.fromkeys(output_names(net), 0.0)
+    memory = net.new_memory()
+    empty = net.empty_memory_state(images.shape[0], tuple(images.shape[-2:]))
+    memory.load(empty)  # the graph reads an empty memory's slots too, and picks among them alike
+    state = empty.tensors()
+    names = output_names(net)
+    worst = dict.fromkeys(names, 0.0)
     for frame in clip:
-        with torch.inference_mode():
+        outputs = run(*(frame[name] for name in INPUT_NAMES), *state)
+        picks = outputs[len(names):]
+        with torch.inference_mode(), forcing_picks(picks) as deviations:
             reference = net.step_with(memory, frame)
             expected = [reference["points"][-1], reference["logits"][-1], net.decode(reference, y)]
-        kept = memory.state()
-        expected += list(kept.tensors()) if kept is not None else list(state)  # no memory: the state passes through
-        outputs = run(*(frame[name] for name in INPUT_NAMES), *state)
-        for name, got, want in zip(worst, outputs, expected):
+        expected += list(memory.state().tensors())
+        for name, got, want in zip(names, outputs, expected):
             difference = (got.detach().double().cpu() - want.detach().double().cpu()).abs()
             worst[name] = max(worst[name], float(difference.max()) if difference.numel() else 0.0)
-        state = outputs[len(OUTPUT_NAMES):]
+        if picks:
+            worst["picks"] = max(worst.get("picks", 0.0), *deviations)
+        state = outputs[len(OUTPUT_NAMES) : len(names)]
     return worst

@@ -1,7 +1,7 @@
 """A detector's streaming step with its memory as explicit tensors: the graph that
 ``lanelab-export`` writes (torch.export, ONNX), which holds no Python state.
 
-    (images, K, T_lane_cam, T_world_lane, reset, *state_in) -> (points, logits, lanes, *state_out)
+    (images, K, T_lane_cam, T_world_lane, reset, *state_in) -> (points, logits, lanes, *state_out, *picks)
 
 One call is one ``step`` of B streams of a detector with a streaming memory object
 (SparseLaneSTP's :class:`~lanelab.models.memory_queue.MemoryQueue`, Bi²Lane's
@@ -29,6 +29,10 @@ the y grid ``y``):
   - Bi²Lane (:class:`~lanelab.models.bi2lane.frame_cache.FrameState`, the N_h past frames,
     oldest first): features (B, N_h, C, h, w) float32, K (B, N_h, 3, 3) float32, T_lane_cam
     (B, N_h, 4, 4) float32, T_world_lane (B, N_h, 4, 4) float64, valid (B, N_h) bool.
+- picks: the indices (int64) of every top-k the step took, in order (SparseLaneSTP: per decoder
+  layer the parallel neighbours (B, N, M, N, k) and the memory tokens of TCA (B, N, M, k_t),
+  then the lines kept in memory (B, N_mem); Bi²Lane: none). A deployment ignores them; the
+  export check replays them in ``step()`` (:mod:`lanelab.models.ranking`).
 
 SparseLaneSTP's spatio-temporal attention runs its dense implementation, the sparse one's
 reference: the same keys and the same result (:mod:`lanelab.models.spatio_temporal_attention`);
@@ -49,6 +53,7 @@ from torch import Tensor, nn
 from lanelab.models.bi2lane import Bi2Lane
 from lanelab.models.bi2lane.frame_cache import FrameState
 from lanelab.models.memory_queue import QueueState
+from lanelab.models.ranking import recording_picks
 from lanelab.models.sparselanestp import SparseLaneSTP
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
 from lanelab.models.sta_masks import PNA_TIE_MARGIN_M
@@ -94,11 +99,12 @@ class ExplicitStateStep(nn.Module):
     def forward(
         self, images: Tensor, K: Tensor, T_lane_cam: Tensor, T_world_lane: Tensor, reset: Tensor, *state: Tensor
     ) -> tuple[Tensor, ...]:
-        """One streaming step (shapes in the module doc): (points, logits, lanes, *state), the
-        state after this frame."""
+        """One streaming step (shapes in the module doc): (points, logits, lanes, *state, *picks),
+        the state after this frame, then the indices of every top-k the step took, in order."""
         memory = self.net.new_memory()
         memory.load(self.state_type(*state))
         frame = {"images": images, "K": K, "T_lane_cam": T_lane_cam, "T_world_lane": T_world_lane, "reset": reset}
-        outputs = self.net.step_with(memory, frame)
+        with recording_picks() as picks:
+            outputs = self.net.step_with(memory, frame)
         lanes = self.net.decode(outputs, self.y)
-        return (outputs["points"][-1], outputs["logits"][-1], lanes, *memory.state().tensors())
+        return (outputs["points"][-1], outputs["logits"][-1], lanes, *memory.state().tensors(), *picks)

@@ -25,6 +25,7 @@ import torch
 from torch import Tensor
 
 from lanelab.geometry import compose, invert, transform_points
+from lanelab.models.ranking import topk
 
 
 @dataclass
@@ -105,7 +106,7 @@ class MemoryQueue:
             self._allocate(embeddings, control_points, T_world_lane)
         elif self._valid.shape[0] != B:
             raise ValueError("batch size changed without a reset of every stream")
-        top = scores.detach().topk(self.num_lines, dim=1).indices[:, :, None, None]  # (B, N_mem, 1, 1)
+        top = topk(scores.detach(), self.num_lines, largest=True)[1][:, :, None, None]  # (B, N_mem, 1, 1)
         embeddings = embeddings.detach().gather(1, top.expand(-1, -1, *embeddings.shape[2:]))
         control_points = control_points.detach().gather(1, top.expand(-1, -1, *control_points.shape[2:]))
         self._embeddings = _enqueue(self._embeddings, embeddings)

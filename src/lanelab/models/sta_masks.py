@@ -28,7 +28,7 @@ import torch
 from torch import Tensor
 
 from lanelab.geometry import sampling_matrix
-from lanelab.models.ranking import stable_topk
+from lanelab.models.ranking import topk
 
 # Metres per candidate position by which an exported PNA settles near-ties the same way on every
 # backend (models.ranking, models.explicit_state.settle_ties): on near-parallel lines a line's
@@ -88,9 +88,7 @@ def parallel_neighbours(points: Tensor, num_neighbors: int = 2, tie_margin: floa
     tie_margin: metres per position that settle near-ties for the earlier point (models.ranking)."""
     offsets = normal_plane_offsets(points, points).abs_()
     k = min(num_neighbors, points.shape[-2])
-    if tie_margin > 0:
-        return stable_topk(offsets, k, margin=tie_margin)
-    return offsets.topk(k, dim=-1, largest=False).indices
+    return topk(offsets, k, margin=tie_margin)[1]
 
 
 def temporal_neighbours(
@@ -111,7 +109,7 @@ def temporal_neighbours(
     distance = offsets.square().sum(-1).sqrt()  # (B, N·M, K)
     distance = distance.masked_fill_(~memory_valid[:, None, :], torch.inf)
     k = min(m_tca, memory_points.shape[1])
-    nearest, index = distance.topk(k, dim=-1, largest=False)
+    nearest, index = topk(distance, k)
     return index.view(B, N, M, k), nearest.isfinite().view(B, N, M, k)
 
 
