@@ -191,6 +191,9 @@ def test_two_directions_in_lockstep_compute_what_each_computes_alone():
     assert not torch.allclose(together[0].anchors[1], together[1].anchors[1])  # the two chains did differ
     with pytest.raises(ValueError, match="lockstep"):
         refine([forward, reverse], anchors, [[0, 1, 2], [2, 1]], *inputs)
+    unaligned = TemporalRefinement(4, M, 8, 1, alignment=False)
+    with pytest.raises(ValueError, match="one temporal alignment"):
+        refine([forward, unaligned], anchors, orders, *inputs)
 
 
 # -------------------------------------------------------------------------- ablation switches

@@ -42,8 +42,8 @@ from lanelab.lanes import LANE_CATEGORY_IDS
 from lanelab.models.bi2lane import Bi2Lane
 from lanelab.models.bi2lane.frame_cache import FrameState
 from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
-from lanelab.models.ranking import forcing_picks
 from lanelab.models.memory_queue import QueueState
+from lanelab.models.ranking import forcing_picks
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 METADATA_KEY = "lanelab"

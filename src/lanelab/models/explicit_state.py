@@ -88,7 +88,6 @@ class ExplicitStateStep(nn.Module):
             if isinstance(module, SpatioTemporalAttention) and module.impl == "sparse":
                 module.impl = "dense"
         self.register_buffer("y", torch.as_tensor(y, dtype=torch.float32), persistent=False)
-        self.state_type = type(self.net.new_memory()).State
 
     def initial_state(
         self, batch: int, image_size: tuple[int, int], device: torch.device | str | None = None
@@ -102,7 +101,7 @@ class ExplicitStateStep(nn.Module):
         """One streaming step (shapes in the module doc): (points, logits, lanes, *state, *picks),
         the state after this frame, then the indices of every top-k the step took, in order."""
         memory = self.net.new_memory()
-        memory.load(self.state_type(*state))
+        memory.load(type(memory).State(*state))
         frame = {"images": images, "K": K, "T_lane_cam": T_lane_cam, "T_world_lane": T_world_lane, "reset": reset}
         with recording_picks() as picks:
             outputs = self.net.step_with(memory, frame)

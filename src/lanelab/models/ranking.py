@@ -51,11 +51,11 @@ def topk(values: Tensor, k: int, *, largest: bool = False, margin: float = 0.0) 
             raise RuntimeError("the step made more picks than the ones it is given")
         index = _forced.pop(0).to(values.device)
         _deviations.append(deviation(ranked, index, largest))
-    else:
-        index = ranked.topk(k, dim=-1, largest=largest).indices
-        if _recorded is not None:
-            _recorded.append(index)
-    return values.gather(-1, index), index
+        return values.gather(-1, index), index
+    best, index = ranked.topk(k, dim=-1, largest=largest)
+    if _recorded is not None:
+        _recorded.append(index)
+    return (values.gather(-1, index) if margin else best), index  # shifted values are not the values
 
 
 def deviation(ranked: Tensor, index: Tensor, largest: bool = False) -> float:

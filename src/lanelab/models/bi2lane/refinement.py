@@ -98,6 +98,8 @@ def refine(
         raise ValueError(f"directions run in lockstep over windows of one length, got orders {orders}")
     if S > 1 and any(direction.offsets is None for direction in directions):
         raise ValueError("this refinement was built without steps: it visits the current frame only")
+    if len({direction.alignment for direction in directions}) > 1:
+        raise ValueError("directions run in lockstep with one temporal alignment setting")
     B, current = features.shape[0], features.shape[1] - 1
 
     def at(tensor: Tensor, step: int) -> Tensor:
