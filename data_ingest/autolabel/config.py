@@ -31,6 +31,7 @@ class AutolabelConfig:
     merge_m: float = MISSING
     min_length_m: float = MISSING
     max_std_m: float = MISSING
+    max_gap_m: float = MISSING
     process_noise_m: float = MISSING
     curvature_noise: float = MISSING
     max_speed_mps: float = MISSING
@@ -50,7 +51,7 @@ def validate_autolabel(cfg: AutolabelConfig) -> AutolabelConfig:
     for key in ("range_m", "min_reach_m", "pixel_noise_px", "max_point_std_m", "node_spacing_m", "gate_m", "merge_m",
                 "max_std_m", "max_speed_mps", "confirm_hits", "max_misses"):
         check_positive(f"autolabel.{key}", getattr(cfg, key))
-    for key in ("min_length_m", "process_noise_m", "curvature_noise", "min_travel_m", "pictures", "category_penalty_m"):
+    for key in ("min_length_m", "max_gap_m", "process_noise_m", "curvature_noise", "min_travel_m", "pictures", "category_penalty_m"):
         if getattr(cfg, key) < 0:
             raise ConfigError(f"autolabel.{key}={getattr(cfg, key)!r} must be >= 0")
     near_far = list(cfg.projection_range_m)

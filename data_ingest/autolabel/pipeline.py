@@ -93,7 +93,7 @@ def auto_label(drive: DriveFrames, cfg: AutolabelConfig) -> AutoLabels:
                                           spacing, cfg.min_score)
         in_view = _in_view_check(surface, spacing, drive.K[t], T_world_cam[t], tuple(drive.image_size[t]), near, far)
         tracker.step(t, observations, in_view, passed_node=int(np.floor(surface.frame_s[t] / spacing)))
-    lines = tracker.lines(cfg.curvature_noise, cfg.min_length_m, cfg.max_std_m)
+    lines = tracker.lines(cfg.curvature_noise, cfg.min_length_m, cfg.max_std_m, cfg.max_gap_m)
     labeled = surface.frame_s[-1] + far - surface.frame_s >= cfg.reach_m
     lanes = [frame_labels(surface, lines, spacing, t, drive.T_world_lane[t], drive.K[t], drive.T_lane_cam[t],
                           tuple(drive.image_size[t]), cfg.range_m,

@@ -26,12 +26,14 @@ is a model, a node may settle); its measurements are the observations of
 5. **merge**: two live tracks that cover the same nodes within ``merge_m`` are one line (a
    detection split by an occlusion, say): the younger is fused into the older, which keeps its id.
 
-:meth:`LineTracker.lines` returns the lines, smoothed along their length
-(:mod:`~data_ingest.autolabel.line_smoother`).
+:meth:`LineTracker.lines` returns the lines: tracks of one line that a stretch without a good
+view split (traffic hid it, a lane change took the ego away) joined end to start, each smoothed
+along its length (:mod:`~data_ingest.autolabel.line_smoother`), which fills such gaps.
 """
 
 from __future__ import annotations
 
+import copy
 from collections import defaultdict
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -141,6 +143,13 @@ class Track:
             self.votes[category] += vote
 
 
+def _known(track: Track, max_std_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """nodes, d, var of the track's nodes known to within max_std_m."""
+    nodes, d, var = track.observed()
+    known = var <= max_std_m**2
+    return nodes[known], d[known], var[known]
+
+
 def _fuse(d: np.ndarray, var: np.ndarray, z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Kalman update of estimates d (M,) of variance var (M,) (NaN, inf: none yet) by
     measurements z (M,) of variance r (M,): the updated estimates and variances."""
@@ -209,17 +218,17 @@ class LineTracker:
         self.tracks = survivors
         self._merge()
 
-    def lines(self, curvature_noise: float, min_length_m: float, max_std_m: float) -> list[Line]:
+    def lines(self, curvature_noise: float, min_length_m: float, max_std_m: float, max_gap_m: float) -> list[Line]:
         """The confirmed tracks, by id, smoothed along their length: each from its first to its
         last node known to within ``max_std_m`` (a line or a part of it seen only from afar,
-        where a pixel is metres, is no label), if that is at least ``min_length_m`` long."""
+        where a pixel is metres, is no label), if that is at least ``min_length_m`` long. Tracks
+        of one line that a stretch of up to ``max_gap_m`` without a good view split are joined
+        first (:meth:`_join_gaps`); the smoother fills the gap."""
         lines = []
-        for track in sorted((t for t in self.tracks if t.confirmed), key=lambda t: t.track_id):
-            nodes, d, var = track.observed()
-            known = var <= max_std_m**2
-            if known.sum() < 2 or np.ptp(nodes[known]) * self.node_spacing_m < min_length_m:
+        for track in self._join_gaps(max_std_m, max_gap_m):
+            nodes, d, var = _known(track, max_std_m)
+            if len(nodes) < 2 or np.ptp(nodes) * self.node_spacing_m < min_length_m:
                 continue
-            nodes, d, var = nodes[known], d[known], var[known]
             all_nodes = np.arange(nodes[0], nodes[-1] + 1)
             measured = np.full(len(all_nodes), np.inf)
             measured[nodes - nodes[0]] = var
@@ -227,6 +236,39 @@ class LineTracker:
                                    curvature_noise)
             lines.append(Line(track.track_id, track.category, all_nodes, smoothed, track.ended))
         return lines
+
+    def _join_gaps(self, max_std_m: float, max_gap_m: float) -> list[Track]:
+        """The confirmed tracks by id, those of one line joined: a track that starts after another
+        one's end, within ``max_gap_m``, of the same kind, where the two, each extended straight
+        across the gap, meet within ``gate_m`` at its middle (a line hidden by traffic or a lane
+        change for a while, whose track ended and another began). The earlier keeps its id."""
+        tracks = [copy.deepcopy(t) for t in self.tracks if t.confirmed]  # the tracker's own stay as they are
+        known = {id(t): _known(t, max_std_m)[0] for t in tracks}
+        joined: list[Track] = []
+        for track in sorted((t for t in tracks if len(known[id(t)]) >= 2), key=lambda t: known[id(t)][0]):
+            costs = [(self._gap_cost(before, track, max_std_m, max_gap_m), k) for k, before in enumerate(joined)]
+            cost, k = min(costs, default=(_FAR, -1))
+            if cost <= self.gate_m:
+                joined[k].absorb(track)
+                joined[k].ended = track.ended
+            else:
+                joined.append(track)
+        return sorted(joined, key=lambda t: t.track_id)
+
+    def _gap_cost(self, before: Track, after: Track, max_std_m: float, max_gap_m: float) -> float:
+        """Lateral distance at the gap's middle of ``before`` and ``after``, each extended straight
+        across it; _FAR when ``after`` does not start within max_gap_m after ``before`` ends, or
+        they are different kinds of line."""
+        a_nodes, a_d, _ = _known(before, max_std_m)
+        b_nodes, b_d, _ = _known(after, max_std_m)
+        gap = int(b_nodes[0] - a_nodes[-1])
+        if not 0 < gap * self.node_spacing_m <= max_gap_m or different_kinds(before.category, after.category):
+            return _FAR
+        middle = (a_nodes[-1] + b_nodes[0]) / 2
+        tail, head = slice(-EXTEND_FIT_NODES, None), slice(None, EXTEND_FIT_NODES)
+        a_at = np.polyval(np.polyfit(a_nodes[tail].astype(float), a_d[tail], 1), middle)
+        b_at = np.polyval(np.polyfit(b_nodes[head].astype(float), b_d[head], 1), middle)
+        return float(abs(a_at - b_at))
 
     def _birth(self, observation: Observation) -> None:
         size = len(observation.nodes)
@@ -250,8 +292,10 @@ class LineTracker:
         if len(shared) >= MIN_OVERLAP_NODES:
             weight = 1 / (observation.sigma[at_obs] ** 2 + var[at_track])
             return float(np.average(np.abs(observation.d[at_obs] - d[at_track]), weights=weight))
-        gap = (observation.nodes[0] - nodes[-1]) * self.node_spacing_m
-        if not 0 < gap <= MAX_EXTEND_M or len(nodes) < 2:
+        # Too little overlap: an observation that starts at most a few nodes before the track's end
+        # (a line seen further on, or after a gap) is compared with the track extended.
+        gap = int(observation.nodes[0] - nodes[-1])
+        if not -MIN_OVERLAP_NODES < gap <= MAX_EXTEND_M / self.node_spacing_m or len(nodes) < 2:
             return _FAR
         tail = slice(-EXTEND_FIT_NODES, None)
         slope, offset = np.polyfit(nodes[tail].astype(float), d[tail], 1)

@@ -20,6 +20,7 @@ from lanelab.config_checks import ConfigError, check_choice, check_positive, loa
 ENCODINGS = ("ros2", "foxglove")
 FOXGLOVE_SCHEMAS = ("protobuf", "json")
 IMAGE_FORMATS = ("jpeg", "png", "raw")
+DETECTOR_NOISE = ("row", "isotropic")
 COMPRESSIONS = ("zstd", "lz4", "none")
 LABEL_FRAMES = ("base_link", "odom")
 ENVIRONMENTS = ("highway", "urban", "rural")
@@ -73,6 +74,7 @@ class SynthConfig:
     workers: int = MISSING
     preview: bool = MISSING
     overwrite: bool = MISSING
+    detector_noise: str = MISSING
     camera: CameraConfig = field(default_factory=CameraConfig)
     world: WorldConfig = field(default_factory=WorldConfig)
     topics: TopicsConfig = field(default_factory=TopicsConfig)
@@ -98,6 +100,7 @@ def validate(cfg: SynthConfig) -> SynthConfig:
     _choice("encoding", cfg.encoding, ENCODINGS)
     _choice("foxglove_schema", cfg.foxglove_schema, FOXGLOVE_SCHEMAS)
     _choice("image_format", cfg.image_format, IMAGE_FORMATS)
+    _choice("detector_noise", cfg.detector_noise, DETECTOR_NOISE)
     _choice("compression", cfg.compression, COMPRESSIONS)
     _choice("labels_frame", cfg.labels_frame, LABEL_FRAMES)
 

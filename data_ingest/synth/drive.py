@@ -104,7 +104,8 @@ class SyntheticDrive:
         look: Look = make_look(environment, daytime, weather, rng["look"])
         self.renderer = Renderer(road, self.scenery, self.camera, look if sensor_noise else without_noise(look),
                                  rng["render"], self.draw_range)
-        self.labeler = Labeler(road, self.camera, world.max_range_m, self.scenario, (cfg.seed, log_index))
+        self.labeler = Labeler(road, self.camera, world.max_range_m, self.scenario, (cfg.seed, log_index),
+                               cfg.detector_noise)
 
     def pose_at(self, t_ns: int) -> np.ndarray:
         """Ego pose T_odom_base (4, 4) at time ``t_ns`` (ns since the start; any time, smooth)."""

@@ -64,13 +64,16 @@ class _Points:
 
 
 class Labeler:
-    """Labels frames of one drive; ``seed`` (ints) seeds the detector noise per frame."""
+    """Labels frames of one drive; ``seed`` (ints) seeds the detector noise per frame;
+    detector_noise: "row" (pixel noise across the image row only) or "isotropic" (in both axes)."""
 
     def __init__(self, road: Road, camera: CameraModel, max_range: float, scenario: dict[str, str],
-                 seed: tuple[int, ...]) -> None:
+                 seed: tuple[int, ...], detector_noise: str) -> None:
         self.road, self.camera, self.max_range = road, camera, max_range
         self.scenario = scenario
         self.seed = seed
+        # A row-anchor 2D detector (CLRNet, LaneATT) reports a lane's x at fixed image rows: its error is across the row.
+        self._noise_axes = np.array([1.0, 0.0] if detector_noise == "row" else [1.0, 1.0])
         self._K = torch.from_numpy(np.asarray(camera.K, float))
         self._T_lane_cam = extrinsic_base_to_lane(torch.from_numpy(np.asarray(camera.T_base_cam, float)))
 
@@ -148,7 +151,8 @@ class Labeler:
         return buffer
 
     def _detections(self, points: _Points, rng: np.random.Generator) -> list[Lane2D]:
-        """What a decent 2D lane detector would find: near visible runs, jittered, some missed, a few false."""
+        """What a decent 2D lane detector would find: near visible runs, jittered (a smooth drift and
+        per-point noise along the detector's noise axes), some missed, a few false."""
         weather, night = self.scenario["weather"], self.scenario["daytime"] == "night"
         miss = DETECTOR_MISS[weather] + (NIGHT_MISS if night else 0.0)
         noise = DETECTOR_NOISE_PX[weather] * (1.5 if night else 1.0)
@@ -161,7 +165,7 @@ class Labeler:
                 run = run[: max(MIN_DETECTION_POINTS, int(len(run) * rng.uniform(0.6, 1.0)))]
                 t = np.linspace(0.0, 1.0, len(run))[:, None]
                 drift = rng.normal(0.0, noise, 2) + rng.normal(0.0, 2 * noise, 2) * t  # a smooth bias
-                uv = points.uv[run] + drift + rng.normal(0.0, noise, (len(run), 2))
+                uv = points.uv[run] + (drift + rng.normal(0.0, noise, (len(run), 2))) * self._noise_axes
                 score = float(np.clip(rng.normal(0.9 - miss, 0.05), 0.3, 0.99))
                 detections.append(Lane2D(uv.astype(np.float32), score, line.category))
         for _ in range(rng.poisson(FALSE_FRAGMENTS_PER_FRAME + miss)):

@@ -1,17 +1,19 @@
-"""The auto-labels of a fixed synthetic drive, scored against its true lanes, do not regress.
+"""The auto-labels of fixed synthetic drives, scored against their true lanes, do not regress.
 
-Drive 0 of seed 7 (highway, fog, 3 lanes, 30 m/s), 12 s, with the generator's noisy 2D
-detections and occluder masks, auto-labeled at the default settings of conf/ingest.yaml
-(the images are not rendered: the auto-labeler reads none). Measured on its 66 frames whose
-labels reach 200 m: F1 87.0 %, x error 0.085 m at 0-40 m and 0.126 m at 40-100 m, z error
-0.002 m at 0-40 m, Vis-IoU 86.9 % (before the tracker's category penalty: F1 89.2 %, x error
-0.145 / 0.162 m, Vis-IoU 89.0 %; over six 20 s drives the penalty raised the mean F1 from 73.4
-to 75.4 % and cut the x error 0-40 m from 0.125 to 0.087 m); the thresholds leave a little room.
+12 s of drives 0 (highway, fog, 3 lanes, 30 m/s) and 1 (rural, snow, night) of seed 7, with
+the generator's noisy 2D detections and occluder masks, auto-labeled at the default settings of
+conf/ingest.yaml (the images are not rendered: the auto-labeler reads none), scored on the
+frames whose labels reach 200 m. Measured (2026-11-26), F1 / x error 0-40 m / 40-100 m /
+Vis-IoU: with the default row noise (x across the image row, as row-anchor detectors report
+lanes) drive 0 91.6 % / 0.023 / 0.037 m / 87.3 %, drive 1 89.5 % / 0.048 / 0.057 m / 87.9 %;
+with isotropic pixel noise (``detector_noise=isotropic``, a harsher detector) drive 0 87.0 % /
+0.085 / 0.126 m / 86.9 %. The thresholds leave a little room.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from data_ingest.autolabel.pipeline import DriveFrames, auto_label
@@ -24,8 +26,14 @@ from lanelab.geometry.frames import extrinsic_base_to_lane, pose_base_to_lane
 from lanelab.metrics.openlane import summarize
 
 
-def test_auto_labels_of_a_fixed_drive_match_its_true_lanes():
-    drive = SyntheticDrive(load_synth_config(["seed=7", "duration_s=12"]), 0)
+@pytest.mark.parametrize("log_index, detector_noise, min_f1, max_x_close, max_x_far", [
+    (0, "row", 0.90, 0.04, 0.06),
+    (1, "row", 0.87, 0.07, 0.08),
+    (0, "isotropic", 0.85, 0.10, 0.14),
+])
+def test_auto_labels_of_a_fixed_drive_match_its_true_lanes(log_index, detector_noise, min_f1, max_x_close, max_x_far):
+    drive = SyntheticDrive(load_synth_config(["seed=7", "duration_s=12", "num_logs=2",
+                                              f"detector_noise={detector_noise}"]), log_index)
     frames = [drive.unrendered_frame(i) for i in range(drive.num_frames)]
     camera, n = drive.camera, len(frames)
     T_lane_cam = extrinsic_base_to_lane(torch.from_numpy(np.asarray(camera.T_base_cam, float))).numpy()
@@ -39,10 +47,10 @@ def test_auto_labels_of_a_fixed_drive_match_its_true_lanes():
     scored = summarize(score_frame(frame.lanes, lanes, metric_config())
                        for frame, lanes, ok in zip(frames, labels.lanes, labels.labeled) if ok)
     assert scored["num_frames"] >= 50  # the frames whose labels reach 200 m
-    assert scored["f1"] >= 0.85
-    assert scored["x_error_close"] <= 0.10 and scored["z_error_close"] <= 0.01  # 0-40 m
-    assert scored["x_error_far"] <= 0.14  # 40-100 m
-    assert scored["vis_iou"] >= 0.85
+    assert scored["f1"] >= min_f1
+    assert scored["x_error_close"] <= max_x_close and scored["z_error_close"] <= 0.01  # 0-40 m
+    assert scored["x_error_far"] <= max_x_far  # 40-100 m
+    assert scored["vis_iou"] >= 0.83
     # Stable ids: a track id names one line in every frame it labels.
     for track_id in {lane.track_id for lanes in labels.lanes for lane in lanes}:
         categories = {lane.category for lanes in labels.lanes for lane in lanes if lane.track_id == track_id}

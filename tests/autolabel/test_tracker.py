@@ -42,7 +42,7 @@ def run(lines: list[dict], frames: int, seed: int = 0) -> LineTracker:
 
 
 def test_a_straight_lane_seen_for_100_frames_is_one_track_with_one_id():
-    lines = run([{"offset": 1.75}], 100).lines(curvature_noise=0.003, min_length_m=10, max_std_m=0.5)
+    lines = run([{"offset": 1.75}], 100).lines(curvature_noise=0.003, min_length_m=10, max_std_m=0.5, max_gap_m=60)
     assert len(lines) == 1
     (line,) = lines
     assert line.track_id == 0 and not line.ended
@@ -52,7 +52,7 @@ def test_a_straight_lane_seen_for_100_frames_is_one_track_with_one_id():
 
 def test_a_lane_that_ends_yields_a_track_that_ends_there_while_its_neighbour_goes_on():
     lines = run([{"offset": 1.75}, {"offset": -1.75, "end": 120, "category": 2}], 100)
-    by_offset = {round(float(np.median(line.d))): line for line in lines.lines(0.003, 10, 0.5)}
+    by_offset = {round(float(np.median(line.d))): line for line in lines.lines(0.003, 10, 0.5, 60)}
     assert sorted(by_offset) == [-2, 2]
     ending, going = by_offset[-2], by_offset[2]
     assert ending.ended and ending.nodes[-1] == 120 and ending.category == 2
@@ -74,7 +74,7 @@ def test_ids_stay_with_their_lines_and_a_one_off_false_detection_is_no_line():
                      passed_node=t * STEP)
         ids_over_time.append({round(float(np.nanmedian(track.d))): track.track_id for track in tracked.tracks
                               if track.confirmed})
-    lines = tracked.lines(0.003, 10, 0.5)
+    lines = tracked.lines(0.003, 10, 0.5, 60)
     np.testing.assert_allclose(sorted(np.median(line.d) for line in lines), [-1.75, 1.75, 5.25], atol=0.05)
     assert all(ids == ids_over_time[-1] for ids in ids_over_time[3:])  # confirmed on the third frame, never renamed
 
@@ -87,7 +87,7 @@ def test_a_line_missed_for_a_few_frames_keeps_its_id_and_its_gap_is_filled():
         window = (t * STEP + NEAR, t * STEP + FAR)
         tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
                      passed_node=t * STEP)
-    (line,) = tracked.lines(0.003, 10, 0.5)
+    (line,) = tracked.lines(0.003, 10, 0.5, 60)
     assert line.track_id == 0 and np.array_equal(line.nodes, np.arange(NEAR, 79 * STEP + FAR + 1))
 
 
@@ -116,3 +116,47 @@ def test_dashed_and_solid_of_one_colour_are_one_kind_of_line_and_curbs_another()
     assert line_kind(20) == line_kind(21) == "curb"
     assert different_kinds(20, 2) and different_kinds(8, 2) and not different_kinds(1, 2)
     assert not different_kinds(0, 20) and not different_kinds(8, 0)  # a detector that does not classify
+
+
+def test_a_line_hidden_for_a_stretch_is_one_line_with_the_gap_filled_unless_joining_is_off():
+    rng = np.random.default_rng(5)
+    tracked = tracker()
+    for t in range(90):  # hidden (by traffic, say) for 30 frames: 32 m unseen, its track ends, another begins
+        observations = [] if 30 <= t < 60 else [seen(t, -1.75, rng), seen(t, 1.75, rng, category=20)]
+        window = (t * STEP + NEAR, t * STEP + FAR)
+        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
+                     passed_node=t * STEP)
+    assert len([track for track in tracked.tracks if track.confirmed]) == 4
+    joined = tracked.lines(0.003, 10, 0.5, max_gap_m=60)
+    assert [line.track_id for line in joined] == [0, 1]
+    for line in joined:
+        assert np.array_equal(line.nodes, np.arange(NEAR, 89 * STEP + FAR + 1))
+        assert np.abs(line.d - np.median(line.d)).max() < 0.05  # the gap filled along the line
+    assert len(tracked.lines(0.003, 10, 0.5, max_gap_m=0)) == 4
+    assert len(tracked.lines(0.003, 10, 0.5, max_gap_m=60)) == 2  # lines() leaves the tracks as they were
+
+
+def test_lines_of_another_kind_or_offset_beyond_a_gap_are_not_joined():
+    rng = np.random.default_rng(6)
+    tracked = tracker()
+    for t in range(70):  # a white line ends; 28 m on a curb goes on where it was, and a line 3 m away
+        if t < 20:
+            observations = [seen(t, -1.75, rng)]
+        elif t < 48:
+            observations = []
+        else:
+            observations = [seen(t, -1.75, rng, category=20), seen(t, 1.25, rng)]
+        window = (t * STEP + NEAR, t * STEP + FAR)
+        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
+                     passed_node=t * STEP)
+    assert len(tracked.lines(0.003, 10, 0.5, max_gap_m=60)) == 3
+
+
+def test_a_detection_that_overlaps_the_end_of_a_track_by_a_node_or_two_continues_it():
+    tracked = tracker()
+    for t, (first, last) in enumerate([(0, 20), (0, 22), (0, 24), (23, 45)]):  # the last shares two nodes
+        nodes = np.arange(first, last + 1)
+        tracked.step(t, [Observation(t, nodes, np.full(len(nodes), 1.75), np.full(len(nodes), 0.05), 1, 0.9)],
+                     lambda track: True, passed_node=0)
+    (track,) = tracked.tracks
+    assert track.hits == 4 and track.nodes[-1] == 45
