@@ -29,15 +29,21 @@ def seen(frame: int, offset: float, rng: np.random.Generator, end: int | None = 
                        category, 0.9)
 
 
+def advance(tracked: LineTracker, t: int, observations: list[Observation]) -> None:
+    """Frame t: the ego has passed node t * STEP, and a track is in view where it has nodes
+    within the detections' reach."""
+    window = (t * STEP + NEAR, t * STEP + FAR)
+    tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
+                 passed_node=t * STEP)
+
+
 def run(lines: list[dict], frames: int, seed: int = 0) -> LineTracker:
     """Track ``lines`` (keyword arguments of :func:`seen`) over ``frames`` frames."""
     rng = np.random.default_rng(seed)
     tracked = tracker()
     for t in range(frames):
         observations = [o for line in lines if (o := seen(t, rng=rng, **line)) is not None]
-        window = (t * STEP + NEAR, t * STEP + FAR)
-        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
-                     passed_node=t * STEP)
+        advance(tracked, t, observations)
     return tracked
 
 
@@ -69,9 +75,7 @@ def test_ids_stay_with_their_lines_and_a_one_off_false_detection_is_no_line():
         if t == 30:  # a false detection between two lines, once
             observations.append(Observation(t, np.arange(t * STEP + 8, t * STEP + 16), np.full(8, 3.5),
                                             np.full(8, 0.05), 1, 0.4))
-        window = (t * STEP + NEAR, t * STEP + FAR)
-        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
-                     passed_node=t * STEP)
+        advance(tracked, t, observations)
         ids_over_time.append({round(float(np.nanmedian(track.d))): track.track_id for track in tracked.tracks
                               if track.confirmed})
     lines = tracked.lines(0.003, 10, 0.5, 60)
@@ -84,9 +88,7 @@ def test_a_line_missed_for_a_few_frames_keeps_its_id_and_its_gap_is_filled():
     tracked = tracker()
     for t in range(80):
         observations = [] if 30 <= t < 34 else [seen(t, -1.75, rng)]  # the detector misses it 4 frames running
-        window = (t * STEP + NEAR, t * STEP + FAR)
-        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
-                     passed_node=t * STEP)
+        advance(tracked, t, observations)
     (line,) = tracked.lines(0.003, 10, 0.5, 60)
     assert line.track_id == 0 and np.array_equal(line.nodes, np.arange(NEAR, 79 * STEP + FAR + 1))
 
@@ -123,9 +125,7 @@ def test_a_line_hidden_for_a_stretch_is_one_line_with_the_gap_filled_unless_join
     tracked = tracker()
     for t in range(90):  # hidden (by traffic, say) for 30 frames: 32 m unseen, its track ends, another begins
         observations = [] if 30 <= t < 60 else [seen(t, -1.75, rng), seen(t, 1.75, rng, category=20)]
-        window = (t * STEP + NEAR, t * STEP + FAR)
-        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
-                     passed_node=t * STEP)
+        advance(tracked, t, observations)
     assert len([track for track in tracked.tracks if track.confirmed]) == 4
     joined = tracked.lines(0.003, 10, 0.5, max_gap_m=60)
     assert [line.track_id for line in joined] == [0, 1]
@@ -146,9 +146,7 @@ def test_lines_of_another_kind_or_offset_beyond_a_gap_are_not_joined():
             observations = []
         else:
             observations = [seen(t, -1.75, rng, category=20), seen(t, 1.25, rng)]
-        window = (t * STEP + NEAR, t * STEP + FAR)
-        tracked.step(t, observations, lambda track: bool(np.any((track.nodes >= window[0]) & (track.nodes <= window[1]))),
-                     passed_node=t * STEP)
+        advance(tracked, t, observations)
     assert len(tracked.lines(0.003, 10, 0.5, max_gap_m=60)) == 3
 
 
