@@ -1,7 +1,8 @@
 """Bi²Lane inference speed against the number of history frames, with and without the frame cache.
 
     python benchmarks/bench_bi2lane.py [--configs tiny paper] [--history 0 1 2 3 4 5] [--device cpu|cuda]
-        [--dtype fp32|bf16] [--cuda-graphs on|off] [--frames 10] [--warmup 3] [--threads N] [--json out.json]
+        [--dtype fp32|bf16] [--cuda-graphs on|off] [--malloc default|reuse] [--frames 10] [--warmup 3]
+        [--threads N] [--json out.json]
 
 Each configuration is conf/'s: "tiny" = ``experiment=tiny model=bi2lane`` (at its 64 x 96 images),
 "paper" = ``model=bi2lane`` (ResNet-50, Anchor3DLane's anchors) at 360 x 480 (Anchor3DLane's input).
@@ -15,11 +16,18 @@ On a GPU, cached streaming replays each frame's kernels from CUDA graphs (``mode
 Variants run interleaved frame by frame, so that load from other processes affects them alike;
 figures are medians over the timed frames (after ``--warmup``). The paper's Table VI grows from
 29 ms (1 history frame) to 44 ms (5), +52 %; "growth" below is the same ratio, 5 frames over 1.
+
+``--malloc reuse`` (Linux, glibc) keeps freed memory in the process instead of handing every
+block of over 32 MB back to the kernel, as a caching allocator (jemalloc, tcmalloc) does. The
+paper configuration's per-frame tensors are tens of megabytes (4431 anchors x 20 points x 64
+channels is 23 MB a frame), and glibc maps each one afresh: on the CPU the page faults of those
+fresh pages, not the arithmetic, were most of what a history frame cost.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import platform
 import statistics
@@ -102,6 +110,14 @@ def run(config: str, histories: list[int], args: argparse.Namespace, device: tor
     return rows
 
 
+def reuse_freed_memory() -> None:
+    """glibc: serve every allocation from the heap (no fresh mmap) and never trim the heap."""
+    libc = ctypes.CDLL("libc.so.6")
+    M_TRIM_THRESHOLD, M_MMAP_MAX = -1, -4  # mallopt parameters, malloc.h
+    if not (libc.mallopt(M_MMAP_MAX, 0) and libc.mallopt(M_TRIM_THRESHOLD, 2**31 - 1)):
+        raise SystemExit("--malloc reuse: glibc's mallopt refused")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--configs", nargs="+", default=["tiny", "paper"], choices=sorted(CONFIGS))
@@ -109,6 +125,8 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--dtype", default="fp32", choices=["fp32", "bf16"])
     parser.add_argument("--cuda-graphs", default="on", choices=["on", "off"], help="cached streaming on a GPU")
+    parser.add_argument("--malloc", default="default", choices=["default", "reuse"],
+                        help="reuse: keep freed memory for reuse (glibc; the CPU figures' allocator)")
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--warmup", type=int, default=3)
     parser.add_argument("--threads", type=int, default=None)
@@ -116,12 +134,15 @@ def main() -> None:
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.malloc == "reuse":
+        reuse_freed_memory()
     device = torch.device(args.device)
     if device.type == "cuda":
         machine = torch.cuda.get_device_name(device)
     else:
         machine = f"{platform.processor() or platform.machine()}, {torch.get_num_threads()} threads"
     graphs = f", CUDA graphs {args.cuda_graphs}" if device.type == "cuda" else ""
+    machine += f", malloc {args.malloc}"
     print(f"Bi²Lane inference, {args.dtype}{graphs}, {machine}; medians over {args.frames} frames after {args.warmup}")
     print("| config | history frames | cached ms | cached FPS | uncached ms | uncached FPS |")
     print("|---|---:|---:|---:|---:|---:|")

@@ -11,11 +11,13 @@ from typing import Any
 
 import pytest
 import torch
+import torch.nn.functional as F
 from hydra.utils import instantiate
 from omegaconf import OmegaConf
 
 from lanelab.experiment.config import load_train_config
 from lanelab.geometry import make_transform
+import lanelab.models.bi2lane.anchors as bi2lane_anchors
 from lanelab.models.bi2lane import (
     Bi2Lane,
     BiLevelAggregation,
@@ -124,6 +126,29 @@ def test_a_known_anchor_projects_where_the_pinhole_camera_says_and_samples_the_f
 
     behind = sampling_grid(torch.tensor([0.0, -5.0, 0.0]).view(1, 1, 1, 3), K[None], T[None], (H, W))
     assert sample_features(features, behind).abs().sum() == 0  # behind the camera: no feature
+
+
+def test_sampling_on_the_cpu_equals_grid_sample_values_and_gradients(monkeypatch):
+    """The CPU path for large samples (a weighted sum of four neighbours) is grid_sample's
+    bilinear interpolation with zero padding: inside, across the border, outside and behind the
+    camera, and its gradients with respect to the features and to the sampling points, which
+    training follows."""
+    monkeypatch.setattr(bi2lane_anchors, "_LARGE_SAMPLE", 0)  # this small sample takes the large samples' path
+    torch.manual_seed(0)
+    features = torch.randn(2, 5, 6, 9, dtype=torch.float64, requires_grad=True)
+    grid = (torch.rand(2, 7, 4, 2, dtype=torch.float64) * 2.6 - 1.3)
+    grid[0, 0, 0] = torch.tensor([-2.0, -2.0], dtype=torch.float64)  # where sampling_grid puts points behind the camera
+    grid.requires_grad_(True)
+    expected = F.grid_sample(features, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    expected = expected.permute(0, 2, 3, 1)
+    sampled = sample_features(features, grid)
+    torch.testing.assert_close(sampled, expected)
+    assert sampled.is_contiguous()
+    weights = torch.randn_like(expected)
+    want = torch.autograd.grad((expected * weights).sum(), (features, grid))
+    got = torch.autograd.grad((sampled * weights).sum(), (features, grid))
+    torch.testing.assert_close(got[0], want[0])
+    torch.testing.assert_close(got[1], want[1])
 
 
 # ---------------------------------------------------------------- temporal alignment (eq. 3-6)

@@ -23,6 +23,11 @@ from lanelab.geometry import compose, invert, project_lane_points, transform_poi
 # Normalised sampling coordinate of points behind the camera: outside [-1, 1], so grid_sample's
 # zero padding gives them no feature.
 _OUTSIDE = -2.0
+# Sampled values from which the CPU's weighted-sum path beats grid_sample and its transposing copy
+# (the paper's BDTR step samples 11 M, the tiny one's 50 k; measured by benchmarks/bench_bi2lane.py).
+_LARGE_SAMPLE = 1 << 20
+# (column, row) offsets of a point's four neighbouring cells, for bilinear sampling.
+_CORNERS = torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
 
 
 def anchor_families(
@@ -65,10 +70,32 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
 
 def sample_features(features: Tensor, grid: Tensor) -> Tensor:
     """S of eq. 1: feature maps (B, C, h, w) covering the image, bilinearly sampled at grid
-    (B, A, M, 2) of :func:`sampling_grid` -> (B, A, M, C); zero outside the image."""
+    (B, A, M, 2) of :func:`sampling_grid` -> (B, A, M, C), contiguous; zero outside the image.
+
+    Large samples on the CPU (outside ONNX export) are a weighted sum of each point's four
+    neighbouring feature vectors in a channels-last map (``embedding_bag``), which gives the
+    (A, M, C) layout the heads read directly; ``grid_sample`` gives (C, A, M), and at the paper's
+    4431 x 20 points its transposing copy cost as much as the sampling (BDTR samples once per
+    history frame). Small samples, and other devices, take grid_sample's one call. Both compute
+    grid_sample's bilinear interpolation (align_corners=False, zero padding)."""
     grid = grid.to(features.dtype)
-    sampled = F.grid_sample(features, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
-    return sampled.permute(0, 2, 3, 1)
+    large = grid[..., 0].numel() * features.shape[1] >= _LARGE_SAMPLE
+    if not large or features.device.type != "cpu" or torch.onnx.is_in_onnx_export():
+        sampled = F.grid_sample(features, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+        return sampled.permute(0, 2, 3, 1).contiguous()
+    B, C, h, w = features.shape
+    size = grid.new_tensor([w, h])
+    pixel = (grid + 1) * size / 2 - 0.5  # (..., 2) pixel coordinates, cell centres at integers
+    corners = pixel.floor().unsqueeze(-2) + _CORNERS.to(grid)  # (..., 4, 2) the four neighbours
+    weights = (1 - (corners - pixel.unsqueeze(-2)).abs()).prod(-1)  # (..., 4) bilinear
+    inside = ((corners >= 0) & (corners <= size - 1)).all(-1)  # False for NaN too
+    weights = torch.where(inside, weights, torch.zeros_like(weights))
+    corners = torch.minimum(corners.nan_to_num(0).clamp(min=0), size - 1).long()
+    rows = corners[..., 1] * w + corners[..., 0]
+    rows = rows + (torch.arange(B, device=rows.device) * (h * w)).view(B, *[1] * (rows.dim() - 1))
+    table = features.permute(0, 2, 3, 1).reshape(B * h * w, C)
+    sampled = F.embedding_bag(rows.reshape(-1, 4), table, per_sample_weights=weights.reshape(-1, 4), mode="sum")
+    return sampled.view(*grid.shape[:-1], C)
 
 
 def ego_motion(T_world_lane_to: Tensor, T_world_lane_from: Tensor) -> Tensor:

@@ -80,7 +80,8 @@ class Bi2Lane(nn.Module):
     "bidirectional" (Table V); aggregation: "none", "point", "line" or "bilevel" (Table IV);
     temporal_alignment: move anchors between frames by the ego motion (Table VII).
     num_heads, ffn_dim, dropout: BLFA's attention layers; head_hidden_dim, head_hidden_layers:
-    the MLPs of the offset heads and of the class / x / z / visibility heads.
+    the MLPs of the class / x / z / visibility heads; offset_hidden_dim: the hidden width of
+    BDTR's offset heads (eq. 2, with head_hidden_layers), which run once per history frame.
     num_classes K (without background); bev: the auxiliary BEV branch, None: none.
     cuda_graphs: streaming inference on a GPU replays each frame's kernels from CUDA graphs
     (:mod:`lanelab.models.cuda_graph`; the same results, without the launch cost of BDTR's steps).
@@ -104,6 +105,7 @@ class Bi2Lane(nn.Module):
         dropout: float,
         head_hidden_dim: int,
         head_hidden_layers: int,
+        offset_hidden_dim: int,
         num_classes: int,
         bev: BEVBranch | None,
         cuda_graphs: bool = True,
@@ -122,7 +124,7 @@ class Bi2Lane(nn.Module):
         self.directions = ("forward", "reverse") if direction == "bidirectional" else (direction,)
         # One refinement and one aggregation per direction, in the order of self.directions.
         self.refinement = nn.ModuleList(
-            TemporalRefinement(embed_dim, num_points, head_hidden_dim, head_hidden_layers, temporal_alignment,
+            TemporalRefinement(embed_dim, num_points, offset_hidden_dim, head_hidden_layers, temporal_alignment,
                                steps=num_history_frames > 0)
             for _ in self.directions
         )
