@@ -142,8 +142,7 @@ def main() -> None:
     else:
         machine = f"{platform.processor() or platform.machine()}, {torch.get_num_threads()} threads"
     graphs = f", CUDA graphs {args.cuda_graphs}" if device.type == "cuda" else ""
-    machine += f", malloc {args.malloc}"
-    print(f"Bi²Lane inference, {args.dtype}{graphs}, {machine}; medians over {args.frames} frames after {args.warmup}")
+    print(f"Bi²Lane inference, {args.dtype}{graphs}, malloc {args.malloc}, {machine}; medians over {args.frames} frames after {args.warmup}")
     print("| config | history frames | cached ms | cached FPS | uncached ms | uncached FPS |")
     print("|---|---:|---:|---:|---:|---:|")
     rows = []
@@ -159,7 +158,8 @@ def main() -> None:
                 growth = by[(5, mode)]["ms"] / by[(1, mode)]["ms"] - 1
                 print(f"{config}, {mode}: 5 history frames cost {100 * growth:+.0f} % over 1 (paper: +52 %)")
     if args.json:
-        args.json.write_text(json.dumps({"machine": machine, "dtype": args.dtype, "cuda_graphs": args.cuda_graphs, "rows": rows}, indent=1))
+        args.json.write_text(json.dumps({"machine": machine, "dtype": args.dtype, "cuda_graphs": args.cuda_graphs,
+                                          "malloc": args.malloc, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":

@@ -70,7 +70,7 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
 
 def sample_features(features: Tensor, grid: Tensor) -> Tensor:
     """S of eq. 1: feature maps (B, C, h, w) covering the image, bilinearly sampled at grid
-    (B, A, M, 2) of :func:`sampling_grid` -> (B, A, M, C), contiguous; zero outside the image.
+    (B, A, M, 2) of :func:`sampling_grid` -> (B, A, M, C); zero outside the image.
 
     Large samples on the CPU (outside ONNX export) are a weighted sum of each point's four
     neighbouring feature vectors in a channels-last map (``embedding_bag``), which gives the
@@ -82,7 +82,7 @@ def sample_features(features: Tensor, grid: Tensor) -> Tensor:
     large = grid[..., 0].numel() * features.shape[1] >= _LARGE_SAMPLE
     if not large or features.device.type != "cpu" or torch.onnx.is_in_onnx_export():
         sampled = F.grid_sample(features, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
-        return sampled.permute(0, 2, 3, 1).contiguous()
+        return sampled.permute(0, 2, 3, 1)
     B, C, h, w = features.shape
     size = grid.new_tensor([w, h])
     pixel = (grid + 1) * size / 2 - 0.5  # (..., 2) pixel coordinates, cell centres at integers
