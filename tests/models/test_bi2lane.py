@@ -18,6 +18,7 @@ from omegaconf import OmegaConf
 from lanelab.experiment.config import load_train_config
 from lanelab.geometry import make_transform
 import lanelab.models.bi2lane.anchors as bi2lane_anchors
+import lanelab.models.bi2lane.model as bi2lane_model
 from lanelab.models.bi2lane import (
     Bi2Lane,
     BiLevelAggregation,
@@ -222,6 +223,26 @@ def test_two_directions_in_lockstep_compute_what_each_computes_alone():
 
 
 # -------------------------------------------------------------------------- ablation switches
+def test_aggregation_in_chunks_of_anchors_equals_one_call(tiny_net, monkeypatch):
+    """On a CPU, BLFA runs over chunks of anchors (each anchor's aggregation is its own); the
+    detections and their gradients are those of one call over all anchors."""
+    net = build(tiny_net, num_history_frames=2).train()
+    batch = window_batch(2, 3, seed=5)
+    results = []
+    for chunk in (10_000, 7):  # one call for the tiny size's 71 anchors, then chunks with a remainder
+        monkeypatch.setattr(bi2lane_model, "_CPU_AGGREGATION_CHUNK", chunk)
+        net.zero_grad()
+        torch.manual_seed(0)
+        out = net(batch)
+        (out["points"].sum() + out["logits"].sum()).backward()
+        results.append((out["points"], out["logits"], [p.grad.clone() for p in net.aggregation.parameters()]))
+    (points, logits, grads), (chunked_points, chunked_logits, chunked_grads) = results
+    torch.testing.assert_close(chunked_points, points, atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(chunked_logits, logits, atol=1e-5, rtol=1e-5)
+    for got, want in zip(chunked_grads, grads):
+        torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-4)
+
+
 def changes_output(net: Bi2Lane, batch: dict, frames: list[int]) -> bool:
     """Whether new images in these frames of the window change the net's proposals or classes."""
     with torch.no_grad():

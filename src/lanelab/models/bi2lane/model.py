@@ -49,6 +49,11 @@ from lanelab.models.heads import mlp
 DIRECTIONS = ("forward", "reverse", "bidirectional")
 # The FPN reads C3..C5 and gives one level, stride 8.
 _BACKBONE_STAGES = (1, 2, 3)
+# Anchors per BLFA call on a CPU. Each anchor's aggregation is its own; in chunks, the history's stack and
+# the feed-forward layers' activations (at the paper size N x 23 MB and 90 MB for all 4431 anchors) stay
+# under glibc's 32 MB, above which every allocation is fresh pages from the kernel: with one call, five
+# history frames cost +34 % over one instead of about +11 % (benchmarks/bench_bi2lane.py).
+_CPU_AGGREGATION_CHUNK = 512
 # The paper's Table VI goes to 5 history frames; the age embedding of the point level is sized for it.
 MAX_HISTORY_FRAMES = 5
 
@@ -244,10 +249,8 @@ class Bi2Lane(nn.Module):
         chains = refine(self.refinement, self.anchors, [orders[name] for name in self.directions], features, *camera)
         for name, refined, aggregation in zip(self.directions, chains, self.aggregation):
             by_frame = dict(zip(orders[name], refined.features))
-            current = by_frame[F - 1]
             history = [by_frame[f] for f in range(F - 2, -1, -1)]  # newest first
-            history = torch.stack(history, 3) if history else current.unsqueeze(3)[:, :, :, :0]  # (B, A, M, N, C)
-            fused.append(aggregation(current, history, history_valid))
+            fused.append(_aggregate(aggregation, by_frame[F - 1], history, history_valid))
             detections.append(refined.detections)
             detection_valid.append(refined.detection_valid)
         lanes = torch.cat(fused, dim=-1).flatten(-2)  # (B, A, M * D * C), eq. 11
@@ -267,3 +270,17 @@ class Bi2Lane(nn.Module):
             outputs["bev_logits"] = self.bev(features[:, -1], K[:, -1], T_lane_cam[:, -1], image_size)
             outputs["bev_x"], outputs["bev_y"] = self.bev.x, self.bev.y
         return outputs
+
+
+def _aggregate(aggregation: BiLevelAggregation, current: Tensor, history: list[Tensor], history_valid: Tensor) -> Tensor:
+    """BLFA of one direction: current (B, A, M, C) and history [(B, A, M, C)] newest first, stacked
+    (B, A, M, N, C) for the point level; on a CPU in chunks of anchors (_CPU_AGGREGATION_CHUNK)."""
+    A = current.shape[1]
+    chunk = _CPU_AGGREGATION_CHUNK if current.device.type == "cpu" else A
+    parts = []
+    for start in range(0, A, chunk):
+        anchors = slice(start, start + chunk)
+        mine = current[:, anchors]
+        stacked = torch.stack([h[:, anchors] for h in history], 3) if history else mine.unsqueeze(3)[:, :, :, :0]
+        parts.append(aggregation(mine, stacked, history_valid))
+    return parts[0] if len(parts) == 1 else torch.cat(parts, 1)
