@@ -51,8 +51,8 @@ DIRECTIONS = ("forward", "reverse", "bidirectional")
 _BACKBONE_STAGES = (1, 2, 3)
 # Anchors per BLFA call on a CPU. Each anchor's aggregation is its own; in chunks, the history's stack and
 # the feed-forward layers' activations (at the paper size N x 23 MB and 90 MB for all 4431 anchors) stay
-# under glibc's 32 MB, above which every allocation is fresh pages from the kernel: with one call, five
-# history frames cost +34 % over one instead of about +11 % (benchmarks/bench_bi2lane.py).
+# under glibc's 32 MB, above which every allocation is fresh pages from the kernel. Five history frames
+# cost +33-35 % over one with one call, +4-25 % in chunks (glibc's defaults, benchmarks/RESULTS.md).
 _CPU_AGGREGATION_CHUNK = 512
 # The paper's Table VI goes to 5 history frames; the age embedding of the point level is sized for it.
 MAX_HISTORY_FRAMES = 5
