@@ -13,8 +13,11 @@ from torch import Tensor
 
 from lanelab.geometry.transforms import invert, transform_points
 
+# Metres: points nearer the camera plane than this count as behind the camera.
+MIN_DEPTH = 1e-3
 
-def project(points_cam: Tensor, K: Tensor, min_depth: float = 1e-3) -> tuple[Tensor, Tensor]:
+
+def project(points_cam: Tensor, K: Tensor, min_depth: float = MIN_DEPTH) -> tuple[Tensor, Tensor]:
     """Project camera-frame points (..., N, 3) with K (..., 3, 3).
 
     Returns uv (..., N, 2) and in_front (..., N) bool. Points with z <= min_depth are flagged
@@ -23,14 +26,14 @@ def project(points_cam: Tensor, K: Tensor, min_depth: float = 1e-3) -> tuple[Ten
     z = points_cam[..., 2:]
     in_front = z > min_depth
     # Dividing by 1 where flagged keeps NaN/inf out of gradients of the valid points.
-    homogeneous = points_cam @ K.transpose(-1, -2)
+    homogeneous = points_cam @ K.transpose(-1, -2).contiguous()  # contiguous: as in transform_points
     uv = homogeneous[..., :2] / torch.where(in_front, z, torch.ones_like(z))
     uv = torch.where(in_front, uv, torch.full_like(uv, float("nan")))
     return uv, in_front.squeeze(-1)
 
 
 def project_lane_points(
-    points_lane: Tensor, K: Tensor, T_lane_cam: Tensor, min_depth: float = 1e-3
+    points_lane: Tensor, K: Tensor, T_lane_cam: Tensor, min_depth: float = MIN_DEPTH
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Project lane-frame points (..., N, 3) into a camera with extrinsic T_lane_cam (..., 4, 4).
 

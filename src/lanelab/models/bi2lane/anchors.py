@@ -19,9 +19,8 @@ import torch.nn.functional as F
 from torch import Tensor
 
 from lanelab.geometry import compose, invert, transform_points
+from lanelab.geometry.camera import MIN_DEPTH
 
-# Points nearer the camera plane than this (metres) count as behind it, as geometry.project has it.
-_MIN_DEPTH = 1e-3
 # Normalised sampling coordinate of points behind the camera: outside [-1, 1], so grid_sample's
 # zero padding gives them no feature.
 _OUTSIDE = -2.0
@@ -69,7 +68,7 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
         flat = points.reshape(shape[0], -1, 3).to(dtype)
         homogeneous = flat @ P[..., :3].transpose(-1, -2).contiguous() + P[..., None, :, 3]
         depth = homogeneous[..., 2:]  # K's last row is (0, 0, 1): the depth along the optical axis
-        in_front = depth > _MIN_DEPTH
+        in_front = depth > MIN_DEPTH
         # Dividing by 1 behind the camera keeps inf / NaN out of the gradients of the points in front.
         grid = homogeneous[..., :2] / torch.where(in_front, depth, torch.ones_like(depth))
         grid = torch.where(in_front, grid, torch.full_like(grid, _OUTSIDE))
@@ -102,8 +101,8 @@ def sample_features(features: Tensor, grid: Tensor) -> Tensor:
     weights = torch.stack([up * left, up * right, down * left, down * right], -1).to(features.dtype)
     # Rows of the padded table: the upper left neighbour's (+1 for the border), then its right, lower and diagonal ones.
     first = row * (w + 2) + column
-    corner = torch.arange(B, device=grid.device, dtype=grid.dtype) * ((h + 2) * (w + 2)) + (w + 3)
-    first = first + corner.view(B, *[1] * (first.dim() - 1))
+    stream = torch.arange(B, device=grid.device, dtype=grid.dtype) * ((h + 2) * (w + 2)) + (w + 3)
+    first = first + stream.view(B, *[1] * (first.dim() - 1))
     rows = (first.unsqueeze(-1) + grid.new_tensor([0.0, 1.0, w + 2.0, w + 3.0])).int()
     sampled = F.embedding_bag(rows.view(-1, 4), table, per_sample_weights=weights.view(-1, 4), mode="sum")
     return sampled.view(*grid.shape[:-1], C)
