@@ -20,6 +20,8 @@ import torch
 from hydra.utils import instantiate
 from omegaconf import OmegaConf
 
+from lanelab.experiment.build import CONFIG_KEY, read_checkpoint
+from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.targets import check_targets
 from lanelab.lightning import LaneDetectionModule
@@ -56,3 +58,17 @@ def test_an_old_checkpoint_scores_as_it_did(tiny_store: Path, tmp_path: Path) ->
                "prior_store": None}  # fmt: skip
     report = evaluate_checkpoint(LEGACY, tiny_store, tmp_path, **options)
     assert report["overall"] == pytest.approx(OLD_SCORES, rel=1e-6, abs=1e-9)
+
+
+def test_a_bi2lane_checkpoint_from_before_offset_hidden_dim_builds_its_offset_heads(tmp_path):
+    """Bi²Lane's offset heads (eq. 2) had the class / x / z heads' hidden width until
+    model.net.offset_hidden_dim was split off; a run config without the key builds them so."""
+    cfg = load_train_config(["experiment=tiny", "model=bi2lane", "model.net.head_hidden_dim=48",
+                             "model.net.offset_hidden_dim=48", f"paths.output_dir={tmp_path}"])  # fmt: skip
+    old = OmegaConf.to_container(cfg, resolve=True)
+    del old["model"]["net"]["offset_hidden_dim"]
+    weights = instantiate(cfg.model.net).state_dict()
+    torch.save({CONFIG_KEY: old, "state_dict": weights}, tmp_path / "old.ckpt")
+    net = read_checkpoint(tmp_path / "old.ckpt")[CONFIG_KEY]["model"]["net"]
+    assert net["offset_hidden_dim"] == 48
+    instantiate(OmegaConf.create(net)).load_state_dict(weights)  # strict: every shape as trained

@@ -131,12 +131,27 @@ def test_writes_are_atomic_and_in_time_order(store):
     assert sorted(p.name for p in (root / "clips").iterdir()) == ["c0.parquet"]
 
 
+def test_manifest_entries_of_other_writers_may_hold_more_keys(tmp_path):
+    """The contract fixes the names of a source's and a clip's fields, not that there are no
+    others: a store written by another tool with extra per-entry keys reads, the extras ignored."""
+    clip = {"clip_id": "c0", "source": "log.mcap", "split": "test", "num_frames": 3,
+            "first_timestamp_ns": 0, "last_timestamp_ns": 200, "camera": "front", "weather": "fog"}
+    source = {"path": "log.mcap", "sha256": "ab" * 32, "num_frames": 3, "writer": "other-tool 2.1"}
+    (tmp_path / "manifest.json").write_text(json.dumps(
+        {"format": "lanelab-clips", "version": 1, "sources": [source], "clips": [clip], "producer": "x"}))
+    manifest = read_manifest(tmp_path)
+    assert manifest.sources == [SourceEntry("log.mcap", "ab" * 32, 3)]
+    assert manifest.clips == [ClipEntry("c0", "log.mcap", "test", 3, 0, 200)]
+
+
 @pytest.mark.parametrize("content, message", [
     (None, "no clip store manifest"),
     ("{not json", "cannot read the manifest"),
     ('{"format": "something-else", "version": 1}', "not a lanelab-clips manifest"),
     ('{"format": "lanelab-clips", "version": 2, "sources": [], "clips": []}', "version 2 is not supported"),
     ('{"format": "lanelab-clips", "version": 1, "sources": []}', "malformed manifest"),
+    ('{"format": "lanelab-clips", "version": 1, "sources": [["log.mcap"]], "clips": []}', "malformed manifest"),
+    ('{"format": "lanelab-clips", "version": 1, "sources": [], "clips": [{"clip_id": "c0"}]}', "malformed manifest"),
 ])
 def test_bad_manifests_are_named(tmp_path, content, message):
     if content is not None:

@@ -100,11 +100,15 @@ def read_checkpoint(checkpoint: str | Path) -> dict[str, Any]:
 def _up_to_date(config: dict[str, Any]) -> dict[str, Any]:
     """An older run config with the data keys of today: the Catmull-Rom targets
     (``data.control_points``) are gone, and the samplers' ``flip`` is given where older configs
-    left it to a default (False). The model of older runs, ``lanelab.lightning.SparseLaneSTPModule``,
-    still builds (lanelab.lightning.legacy)."""
+    left it to a default (False). Bi²Lane's offset heads had the other heads' hidden width before
+    ``model.net.offset_hidden_dim`` was split off. The model of older runs,
+    ``lanelab.lightning.SparseLaneSTPModule``, still builds (lanelab.lightning.legacy)."""
     data, sampler = config.get("data", {}), config.get("sampler", {})
     data.pop("control_points", None)
     for node in (data.get("train_sampler"), data.get("eval_sampler"), sampler.get("train"), sampler.get("eval")):
         if isinstance(node, dict):
             node.setdefault("flip", False)
+    net = config.get("model", {}).get("net", {})
+    if isinstance(net, dict) and str(net.get("_target_", "")).endswith(".Bi2Lane") and "head_hidden_dim" in net:
+        net.setdefault("offset_hidden_dim", net["head_hidden_dim"])
     return config

@@ -7,7 +7,7 @@ the file and the fault.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -74,12 +74,22 @@ def read_manifest(store_dir: str | Path) -> Manifest:
                             f"(this lanelab reads version {FORMAT_VERSION})")
     try:
         return Manifest(
-            sources=[SourceEntry(**entry) for entry in data["sources"]],
-            clips=[ClipEntry(**entry) for entry in data["clips"]],
+            sources=[_entry(SourceEntry, entry) for entry in data["sources"]],
+            clips=[_entry(ClipEntry, entry) for entry in data["clips"]],
             options=dict(data.get("options", {})),
         )
     except (KeyError, TypeError) as err:
         raise ManifestError(f"{path}: malformed manifest: {err}") from None
+
+
+def _entry(kind: type, entry: dict[str, Any]) -> Any:
+    """A manifest entry of the given dataclass from its JSON object. Keys it does not know are
+    ignored: other writers may record more per source or clip (the contract fixes these names,
+    not that there are no others); a missing one is a TypeError."""
+    if not isinstance(entry, dict):
+        raise TypeError(f"a {kind.__name__} is a JSON object, got {entry!r}")
+    known = {f.name for f in fields(kind)}
+    return kind(**{key: value for key, value in entry.items() if key in known})
 
 
 def write_manifest(store_dir: str | Path, manifest: Manifest) -> Path:
