@@ -23,13 +23,14 @@ The memory keeps the lines with the highest foreground class probability (Stream
 by score, with DETR's softmax score). The image features carry LATR's 3D ground positional
 encoding (models.ground_encoding).
 
-Four options make a small model learn from a short schedule (issue "The detectors must learn";
+Three options make a small model learn from a short schedule (issue "The detectors must learn";
 each can be switched off to get the paper's / LATR's behaviour): learned lateral line anchors
 (anchor_span, DAB-DETR / Anchor3DLane style) with lanes assigned to lines by them
-(HungarianMatcher(match_on="anchors"), one-to-many with positive_distance), sample weights in
-the deformable cross-attention that depend on the sampled content (dca_content_weights), and a
-lateral search after every layer that moves each control point across the road onto the
-marking it sees (lateral_search, models.lateral_search).
+(HungarianMatcher(match_on="anchors"), one-to-many with positive_distance), and sample weights
+in the deformable cross-attention that depend on the sampled content (dca_content_weights). A
+fourth, a lateral search after every layer that moves each control point across the road onto
+the marking it sees (lateral_search, models.lateral_search), is off in the configurations: it
+did not improve the near-range error on held-out drives.
 """
 
 from __future__ import annotations
