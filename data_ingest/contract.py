@@ -18,9 +18,8 @@ lanes2d        —                                                lanelab.Lanes2
 The topics (``topics.image``, ... :class:`TopicsConfig`) and frames (``frames.world``,
 ``frames.ego``: :class:`FramesConfig`) are options of both commands. Their default names
 (``/camera/front/image``, ``odom``, ``base_link``, ...) live, as every default does, in
-``conf/drive_log/topics.yaml`` (which ``conf/synth.yaml``, ``conf/ingest.yaml`` and ``conf/predict.yaml``
-include); this module types them and checks them
-(:func:`check_names`).
+``conf/drive_log/topics.yaml``, which ``conf/synth.yaml``, ``conf/ingest.yaml`` and
+``conf/predict.yaml`` include; this module types them and checks them (:func:`check_names`).
 """
 
 from __future__ import annotations

@@ -2,9 +2,10 @@
 
 Not in SparseLaneSTP or LATR; added for issue "The detectors must learn", off by default
 (``lateral_search: null``) since it measured no help on held-out drives (benchmarks/RESULTS.md,
-ninth round of the learning diagnostics); checkpoints trained with it still build. The decoder's heads refine a control point's x from its query
-alone (eq. 5), which says what the deformable cross-attention read but not where that was
-relative to the point: the features carry absolute positions (the ground encoding) and the
+ninth round of the learning diagnostics); checkpoints trained with it still build.
+
+The decoder's heads refine a control point's x from its query alone (eq. 5), which says what
+the deformable cross-attention read but not where that was relative to the point: the features carry absolute positions (the ground encoding) and the
 point's own position never enters the query, so a small model trained from scratch does not
 learn to move a point onto the marking it sees (measured: the refinements left the near range
 no better than the initial points). Row-anchor lane detectors (UFLD) and Anchor3DLane's offset
