@@ -5,11 +5,12 @@ Not in SparseLaneSTP or LATR; added for issue "The detectors must learn", off by
 ninth round of the learning diagnostics); checkpoints trained with it still build.
 
 The decoder's heads refine a control point's x from its query alone (eq. 5), which says what
-the deformable cross-attention read but not where that was relative to the point: the features carry absolute positions (the ground encoding) and the
-point's own position never enters the query, so a small model trained from scratch does not
-learn to move a point onto the marking it sees (measured: the refinements left the near range
-no better than the initial points). Row-anchor lane detectors (UFLD) and Anchor3DLane's offset
-regression localise by what lies *across* a lane instead; this module does the same in 3D.
+the deformable cross-attention read but not where that was relative to the point: the features
+carry absolute positions (the ground encoding) and the point's own position never enters the
+query, so a small model trained from scratch does not learn to move a point onto the marking
+it sees (measured: the refinements left the near range no better than the initial points).
+Row-anchor lane detectors (UFLD) and Anchor3DLane's offset regression localise by what lies
+*across* a lane instead; this module does the same in 3D.
 
 For every control point (x, y, z) it places K candidates at (x + δ_k, y, z) on the road, with
 offsets δ_k spread evenly over ±``search_range`` metres, projects them into the image, reads
