@@ -14,6 +14,7 @@ import torch
 import torch.nn.functional as F
 from hydra.utils import instantiate
 from omegaconf import OmegaConf
+from torch.utils._python_dispatch import TorchDispatchMode
 
 from lanelab.experiment.config import load_train_config
 from lanelab.geometry import make_transform
@@ -344,6 +345,42 @@ def test_bi2lane_streaming_with_graphs_equals_it_without(tiny_net, dtype):
     assert graphed._graphed is not None and eager._graphed is None
     graphed.cpu()  # a move drops the graphs, which read the parameters where they were
     assert graphed._graphed is None
+
+
+class _HostReads(TorchDispatchMode):
+    """Records the operators that make a tensor from host data or read one back to the host."""
+
+    HOST = {"aten.lift_fresh.default", "aten._local_scalar_dense.default"}
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.found: list[str] = []
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        if str(func) in self.HOST:
+            self.found.append(str(func))
+        return func(*args, **(kwargs or {}))
+
+
+def test_what_the_cuda_graphs_capture_touches_no_host_data(tiny_net):
+    """A CUDA graph cannot capture a host-to-device copy or a read back to the host: the calls
+    that streaming replays from graphs (_encode, _detect) must hold neither. Checked on the CPU,
+    so that CI catches what only a GPU would otherwise show."""
+    net = build(tiny_net, num_history_frames=2).eval()
+    spy = _HostReads()
+
+    def watched(fn):
+        def call(*args):
+            with spy:
+                return fn(*args)
+        return call
+
+    net._encode, net._detect = watched(net._encode), watched(net._detect)
+    clip = window_batch(2, 3, seed=5)
+    with torch.no_grad():
+        for f in range(3):
+            net.step({key: clip[key][:, f] for key in ("images", "K", "T_lane_cam", "T_world_lane")})
+    assert spy.found == []
 
 
 # ------------------------------------------------------------------------------ gradients
