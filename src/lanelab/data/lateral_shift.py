@@ -1,0 +1,75 @@
+"""Lateral shift of a frame: what the camera sees when the ego moves sideways by d metres.
+
+Moving the ego (its lane frame, camera and all) by d along the lane frame's x (right) moves every
+lane by -d in that frame. For points on the ground plane z = 0 the new image is the old one under
+a homography: with G = K [r1 r2 t] the map from ground points (x, y, 1) to pixels (r1, r2 and t
+the columns of T_cam_lane for x, y and the translation), a ground point seen at pixel p is seen at
+G S G^-1 p, S the ground translation by -d. Lane markings therefore move exactly (up to the road's
+grade); raised things (vehicles, trees) are sheared. Above the horizon the homography shears
+the sky ever more with height, so the pixels there keep their old values. Pixels that come from
+outside the old image are filled with ``border``, and lane samples that leave the new image are no
+longer visible, as the ground truth marks samples outside the camera's view.
+
+benchmarks/shift_probe.py uses it to ask whether a trained detector reads where a lane lies
+across the road. (As a training augmentation it made the detectors read positions, less
+precisely than the blind prior places them: benchmarks/RESULTS.md, tenth round.)
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+# cv2 puts pixel centres at integers; lanelab's pixel-area convention at half-integers.
+_TO_CV = np.array([[1.0, 0.0, -0.5], [0.0, 1.0, -0.5], [0.0, 0.0, 1.0]])
+
+
+def ground_to_pixels(K: np.ndarray, T_lane_cam: np.ndarray) -> np.ndarray:
+    """G (3, 3): lane-frame ground points (x, y, 1) at z = 0 -> homogeneous pixels."""
+    T_cam_lane = np.linalg.inv(T_lane_cam)
+    return K @ T_cam_lane[:3][:, [0, 1, 3]]
+
+
+def shift_homography(K: np.ndarray, T_lane_cam: np.ndarray, shift: float) -> np.ndarray:
+    """(3, 3) pixel map (cv2's convention) of the image seen after moving the ego by ``shift`` m along x."""
+    G = ground_to_pixels(K, T_lane_cam)
+    S = np.array([[1.0, 0.0, -shift], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    return _TO_CV @ G @ S @ np.linalg.inv(G) @ np.linalg.inv(_TO_CV)
+
+
+def shift_images(images: np.ndarray, K: np.ndarray, T_lane_cam: np.ndarray, shift: float,
+                 border: tuple[float, float, float]) -> np.ndarray:  # fmt: skip
+    """images (F, H, W, 3) uint8 with their K (F, 3, 3) and T_lane_cam (F, 4, 4) -> the images seen
+    after moving the ego by ``shift`` metres to the right; new pixels are ``border``."""
+    height, width = images.shape[1:3]
+    u, v = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    centres = np.stack([u, v, np.ones_like(u)], -1)  # (H, W, 3) pixel centres
+    shifted = np.empty_like(images)
+    for f, (image, k, t) in enumerate(zip(images, K, T_lane_cam)):
+        warped = cv2.warpPerspective(image, shift_homography(k, t, shift), (width, height), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_CONSTANT, borderValue=border)  # fmt: skip
+        ground = (centres @ np.linalg.inv(ground_to_pixels(k, t))[2]) > 0  # (H, W): below the horizon
+        shifted[f] = np.where(ground[..., None], warped, image)
+    return shifted
+
+
+def shift_targets(targets: dict[str, np.ndarray], y: np.ndarray, K: np.ndarray, T_lane_cam: np.ndarray,
+                  image_size: tuple[int, int], shift: float) -> dict[str, np.ndarray]:  # fmt: skip
+    """Lane targets (:class:`~lanelab.data.targets.LaneTargets` output, at the grid y (S,)) after
+    moving the ego by ``shift`` metres: x moves by -shift, samples that leave the image of the
+    current frame's camera (K (3, 3), T_lane_cam (4, 4), image_size (H, W)) become invisible, and
+    lanes left with fewer than two visible samples are dropped, as LaneTargets drops them."""
+    x = targets["gt_x"] - np.float32(shift)
+    z = targets["gt_z"]
+    points = np.stack([x, np.broadcast_to(y, x.shape), z, np.ones_like(x)], -1).astype(np.float64)
+    camera = points @ np.linalg.inv(T_lane_cam).T
+    pixels = camera[..., :3] @ K.T
+    depth = pixels[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v = pixels[..., 0] / depth, pixels[..., 1] / depth
+    height, width = image_size
+    inside = (depth > 0) & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+    visible = (targets["gt_vis"] * inside).astype(np.float32)
+    keep = visible.sum(-1) >= 2
+    shifted = {**targets, "gt_x": x.astype(np.float32), "gt_vis": visible}
+    return {name: value[keep] for name, value in shifted.items()}
