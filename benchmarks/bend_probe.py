@@ -15,8 +15,6 @@ sign under the mirror.
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import torch
 
@@ -24,7 +22,8 @@ from lanelab.data.mirror import mirror_intrinsics, mirror_transforms
 from lanelab.data.targets import LaneTargets
 from lanelab.deploy.trained import TrainedDetector, load_trained
 from lanelab.lightning.predictions import predicted_lanes
-from lanelab.store import ClipStore, FrameRecord
+from lanelab.store import FrameRecord
+from probe import probe_parser, probed_frames
 
 BEND_AT_M = (10.0, 35.0, 60.0)
 NEAR_EGO_M = 8.0
@@ -60,22 +59,15 @@ def predicted_bend(detector: TrainedDetector, record: FrameRecord, mirrored: boo
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("checkpoint")
-    parser.add_argument("store")
-    parser.add_argument("--split", default="test")
-    parser.add_argument("--every", type=int, default=2, help="probe every k-th frame of each clip")
-    args = parser.parse_args()
+    args = probe_parser(__doc__).parse_args()
     detector = load_trained(args.checkpoint)
     y = detector.y.cpu().numpy()
     targets = LaneTargets(y)
-    store = ClipStore(args.store)
     rows = []
-    for clip in store.clips_in(args.split):
-        for record in store.read_frames(clip.clip_id)[:: args.every]:
-            truth = targets(record.lanes)
-            rows.append((bend(truth["gt_x"], truth["gt_vis"] > 0, y),
-                         predicted_bend(detector, record, False), predicted_bend(detector, record, True)))
+    for record in probed_frames(args):
+        truth = targets(record.lanes)
+        rows.append((bend(truth["gt_x"], truth["gt_vis"] > 0, y),
+                     predicted_bend(detector, record, False), predicted_bend(detector, record, True)))
     bends = np.array(rows)
     bends = bends[np.isfinite(bends).all(axis=1)]
     print(f"{args.checkpoint}: {len(bends)} frames of {args.store} ({args.split}) with a bend to compare; "

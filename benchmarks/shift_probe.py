@@ -16,15 +16,13 @@ the shift.
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import torch
 
 from lanelab.data.lateral_shift import shift_images, shift_targets
 from lanelab.data.targets import LaneTargets
 from lanelab.deploy.trained import TrainedDetector, load_trained
-from lanelab.store import ClipStore
+from probe import probe_parser, probed_frames
 
 AT_M = 15.0
 NEAR_EGO_M = 8.0
@@ -54,37 +52,31 @@ def nearest(candidates: np.ndarray, x: float) -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("checkpoint")
-    parser.add_argument("store")
-    parser.add_argument("--split", default="test")
-    parser.add_argument("--every", type=int, default=2, help="probe every k-th frame of each clip")
+    parser = probe_parser(__doc__)
     parser.add_argument("--shifts", type=float, nargs="+", default=[-1.0, -0.5, 0.5, 1.0], help="metres, right")
     args = parser.parse_args()
     detector = load_trained(args.checkpoint)
     y = detector.y.cpu().numpy()
     at = int(np.argmin(np.abs(y - AT_M)))
     targets = LaneTargets(y)
-    store = ClipStore(args.store)
     rows = []  # (shift, ego line?, response, error after the shift)
-    for clip in store.clips_in(args.split):
-        for record in store.read_frames(clip.clip_id)[:: args.every]:
-            truth = targets(record.lanes)
-            kept = (truth["gt_vis"][:, at] > 0) & (np.abs(truth["gt_x"][:, at]) < NEAR_EGO_M)
-            frame = detector.model_input(record)
-            K, image_size = frame["K"][0].cpu().double().numpy(), tuple(frame["images"].shape[-2:])
-            plain = lanes_at(detector, frame, 0.0, at)
-            for shift in args.shifts:
-                moved = lanes_at(detector, frame, shift, at)
-                # lanes that stay in view: the others cannot be followed
-                still = shift_targets(truth, y, K, record.T_lane_cam, image_size, shift)["gt_track_id"]
-                for x, track in zip(truth["gt_x"][kept, at], truth["gt_track_id"][kept]):
-                    start = nearest(plain, x)
-                    if not abs(start - x) < FOLLOW_M or track not in still:
-                        continue
-                    end = nearest(moved, start - shift)
-                    response = (end - start) / -shift if abs(end - (start - shift)) < 2 * abs(shift) else 0.0
-                    rows.append((shift, abs(x) < EGO_LINES_M, response, abs(end - (x - shift))))
+    for record in probed_frames(args):
+        truth = targets(record.lanes)
+        kept = (truth["gt_vis"][:, at] > 0) & (np.abs(truth["gt_x"][:, at]) < NEAR_EGO_M)
+        frame = detector.model_input(record)
+        K, image_size = frame["K"][0].cpu().double().numpy(), tuple(frame["images"].shape[-2:])
+        plain = lanes_at(detector, frame, 0.0, at)
+        for shift in args.shifts:
+            moved = lanes_at(detector, frame, shift, at)
+            # lanes that stay in view: the others cannot be followed
+            still = shift_targets(truth, y, K, record.T_lane_cam, image_size, shift)["gt_track_id"]
+            for x, track in zip(truth["gt_x"][kept, at], truth["gt_track_id"][kept]):
+                start = nearest(plain, x)
+                if not abs(start - x) < FOLLOW_M or track not in still:
+                    continue
+                end = nearest(moved, start - shift)
+                response = (end - start) / -shift if abs(end - (start - shift)) < 2 * abs(shift) else 0.0
+                rows.append((shift, abs(x) < EGO_LINES_M, response, abs(end - (x - shift))))
     rows = np.array(rows, dtype=float)
     print(f"{args.checkpoint} on {args.store} ({args.split}), every {args.every}th frame, lanes at {y[at]:.1f} m")
     print("| shift d (m) | lanes | response, ego lines | response, outer lines | median error after the shift (m) |")
