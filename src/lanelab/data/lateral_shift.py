@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import torch
+
+from lanelab.geometry import project_lane_points
 
 # cv2 puts pixel centres at integers; lanelab's pixel-area convention at half-integers.
 _TO_CV = np.array([[1.0, 0.0, -0.5], [0.0, 1.0, -0.5], [0.0, 0.0, 1.0]])
@@ -39,8 +42,9 @@ def shift_homography(K: np.ndarray, T_lane_cam: np.ndarray, shift: float) -> np.
 
 def shift_images(images: np.ndarray, K: np.ndarray, T_lane_cam: np.ndarray, shift: float,
                  border: tuple[float, float, float]) -> np.ndarray:  # fmt: skip
-    """images (F, H, W, 3) uint8 with their K (F, 3, 3) and T_lane_cam (F, 4, 4) -> the images seen
-    after moving the ego by ``shift`` metres to the right; new pixels are ``border``."""
+    """images (F, H, W, 3) (uint8, or float32 normalised) with their K (F, 3, 3) and T_lane_cam
+    (F, 4, 4) -> the images seen after moving the ego by ``shift`` metres to the right; new pixels
+    are ``border``."""
     height, width = images.shape[1:3]
     u, v = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
     centres = np.stack([u, v, np.ones_like(u)], -1)  # (H, W, 3) pixel centres
@@ -60,15 +64,12 @@ def shift_targets(targets: dict[str, np.ndarray], y: np.ndarray, K: np.ndarray, 
     current frame's camera (K (3, 3), T_lane_cam (4, 4), image_size (H, W)) become invisible, and
     lanes left with fewer than two visible samples are dropped, as LaneTargets drops them."""
     x = targets["gt_x"] - np.float32(shift)
-    z = targets["gt_z"]
-    points = np.stack([x, np.broadcast_to(y, x.shape), z, np.ones_like(x)], -1).astype(np.float64)
-    camera = points @ np.linalg.inv(T_lane_cam).T
-    pixels = camera[..., :3] @ K.T
-    depth = pixels[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u, v = pixels[..., 0] / depth, pixels[..., 1] / depth
+    points = np.stack([x, np.broadcast_to(y, x.shape), targets["gt_z"]], -1).astype(np.float64)
+    camera = (torch.from_numpy(np.asarray(a, np.float64)) for a in (K, T_lane_cam))
+    uv, _, in_front = project_lane_points(torch.from_numpy(points), *camera)
+    u, v = uv.nan_to_num(-1.0).unbind(-1)
     height, width = image_size
-    inside = (depth > 0) & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+    inside = (in_front & (u >= 0) & (u < width) & (v >= 0) & (v < height)).numpy()
     visible = (targets["gt_vis"] * inside).astype(np.float32)
     keep = visible.sum(-1) >= 2
     shifted = {**targets, "gt_x": x.astype(np.float32), "gt_vis": visible}
