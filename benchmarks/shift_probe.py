@@ -35,9 +35,9 @@ def lanes_at(detector: TrainedDetector, frame: dict[str, torch.Tensor], shift: f
     ``model_input``) seen by an ego moved ``shift`` metres to the right."""
     frame = dict(frame)
     if shift:
-        K, T_lane_cam = frame["K"].cpu().numpy(), frame["T_lane_cam"].cpu().numpy().astype(np.float64)
+        K, T_lane_cam = (frame[key].cpu().double().numpy() for key in ("K", "T_lane_cam"))
         images = frame["images"].permute(0, 2, 3, 1).cpu().numpy()  # normalised: 0 is the mean colour
-        moved = shift_images(images, K.astype(np.float64), T_lane_cam, shift, border=(0.0, 0.0, 0.0))
+        moved = shift_images(images, K, T_lane_cam, shift, border=(0.0, 0.0, 0.0))
         frame["images"] = torch.from_numpy(moved).permute(0, 3, 1, 2).to(frame["images"])
     frame["reset"] = torch.ones(1, dtype=torch.bool, device=detector.device)
     with torch.no_grad():

@@ -33,11 +33,11 @@ def ground_to_pixels(K: np.ndarray, T_lane_cam: np.ndarray) -> np.ndarray:
     return K @ T_cam_lane[:3][:, [0, 1, 3]]
 
 
-def shift_homography(K: np.ndarray, T_lane_cam: np.ndarray, shift: float) -> np.ndarray:
-    """(3, 3) pixel map (cv2's convention) of the image seen after moving the ego by ``shift`` m along x."""
-    G = ground_to_pixels(K, T_lane_cam)
+def _shift_homography(G: np.ndarray, G_inv: np.ndarray, shift: float) -> np.ndarray:
+    """(3, 3) pixel map (cv2's convention) of the image seen after moving the ego by ``shift`` m
+    along x, from the ground-to-pixel map G (:func:`ground_to_pixels`) and its inverse."""
     S = np.array([[1.0, 0.0, -shift], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    return _TO_CV @ G @ S @ np.linalg.inv(G) @ np.linalg.inv(_TO_CV)
+    return _TO_CV @ G @ S @ G_inv @ np.linalg.inv(_TO_CV)
 
 
 def shift_images(images: np.ndarray, K: np.ndarray, T_lane_cam: np.ndarray, shift: float,
@@ -50,9 +50,12 @@ def shift_images(images: np.ndarray, K: np.ndarray, T_lane_cam: np.ndarray, shif
     centres = np.stack([u, v, np.ones_like(u)], -1)  # (H, W, 3) pixel centres
     shifted = np.empty_like(images)
     for f, (image, k, t) in enumerate(zip(images, K, T_lane_cam)):
-        warped = cv2.warpPerspective(image, shift_homography(k, t, shift), (width, height), flags=cv2.INTER_LINEAR,
+        G = ground_to_pixels(k, t)
+        G_inv = np.linalg.inv(G)
+        homography = _shift_homography(G, G_inv, shift)
+        warped = cv2.warpPerspective(image, homography, (width, height), flags=cv2.INTER_LINEAR,
                                      borderMode=cv2.BORDER_CONSTANT, borderValue=border)  # fmt: skip
-        ground = (centres @ np.linalg.inv(ground_to_pixels(k, t))[2]) > 0  # (H, W): below the horizon
+        ground = (centres @ G_inv[2]) > 0  # (H, W): below the horizon
         shifted[f] = np.where(ground[..., None], warped, image)
     return shifted
 

@@ -64,7 +64,8 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
         # one product and one division (BDTR projects every anchor point once per history frame).
         # N K row by row (u -> 2 u / W - 1): a matrix made on the host could not be captured in a CUDA graph.
         K = K.to(dtype)
-        NK = torch.stack([K[:, 0] * (2 / width) - K[:, 2], K[:, 1] * (2 / height) - K[:, 2], K[:, 2]], 1)
+        rows = K.unbind(-2)
+        NK = torch.stack([rows[0] * (2 / width) - rows[2], rows[1] * (2 / height) - rows[2], rows[2]], -2)
         P = NK @ invert(T_lane_cam.to(dtype))[..., :3, :]  # (B, 3, 4)
         flat = points.reshape(shape[0], -1, 3).to(dtype)
         homogeneous = flat @ P[..., :3].transpose(-1, -2).contiguous() + P[..., None, :, 3]
@@ -85,8 +86,8 @@ def sample_features(features: Tensor, grid: Tensor) -> Tensor:
     (A, M, C) layout the heads read directly; ``grid_sample`` gives (C, A, M), and at the paper's
     4431 x 20 points its transposing copy cost as much as the sampling (BDTR samples once per
     history frame). Small samples, and other devices, take grid_sample's one call (on an H100 the
-    weighted sum was the slower: benchmarks/RESULTS.md). Both compute
-    grid_sample's bilinear interpolation (align_corners=False, zero padding)."""
+    weighted sum was the slower: benchmarks/RESULTS.md). Both compute grid_sample's bilinear
+    interpolation (align_corners=False, zero padding)."""
     large = grid[..., 0].numel() * features.shape[1] >= _LARGE_SAMPLE
     if not large or features.device.type != "cpu" or torch.onnx.is_in_onnx_export():
         sampled = F.grid_sample(features, grid.to(features.dtype), mode="bilinear", padding_mode="zeros",
