@@ -39,7 +39,7 @@ import torch
 
 from lanelab.atomic_file import atomic_output
 from lanelab.demo import best_checkpoint, heldout_options, prepare_stores
-from lanelab.evaluation.report import REFERENCE_KEY
+from lanelab.evaluation.report import ERROR_BUDGET_KEY, REFERENCE_KEY
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.train import train
@@ -124,6 +124,7 @@ def run_one(model: str, seed: int, stores: tuple[Path, Path], args: argparse.Nam
         "steps": int(fit["train/steps"]),
         "heldout": {key: report["overall"].get(key) for key in SCORES},
         "blind_prior": None if prior is None else {key: prior.get(key) for key in SCORES},
+        "budget": report.get(ERROR_BUDGET_KEY),
         "curves": curves,
     }  # fmt: skip
 
@@ -181,8 +182,27 @@ def report(summary: dict, models: list[str], png: str) -> str:
         (lead_mean, lead_std), names = _lead(means[models[0]]["f1"], means[models[1]]["f1"]), models[:2]
         lines.append(f"{names[0]} leads {names[1]} by {100 * lead_mean:+.1f} ± {100 * lead_std:.1f} F1 points "
                      "(difference of the seed means ± the standard deviation of that difference).")  # fmt: skip
+    lines += budget_lines(runs, models)
     lines += ["", f"![learning curves]({png})", ""]
     return "\n".join(lines)
+
+
+def budget_lines(runs: list[dict], models: list[str]) -> list[str]:
+    """Where the held-out F1 goes (lanelab.metrics.error_budget), per model: the F1 gained by
+    fixing each kind of error with the ground truth, mean ± std over seeds; [] without budgets."""
+    budgets = [run for run in runs if run.get("budget")]
+    if not budgets:
+        return []
+    fixes = [name for name in budgets[0]["budget"] if name != "as predicted"]
+    lines = ["", "Where the held-out F1 goes: the points each model would gain with one kind of error fixed by the "
+             "ground truth (`lanelab.metrics.error_budget`; mean ± std over seeds).", "",
+             "| model | " + " | ".join(fixes) + " |", "|---|" + "---:|" * len(fixes)]  # fmt: skip
+    for model in models:
+        mine = [run["budget"] for run in budgets if run["model"] == model]
+        if mine:
+            gains = [_mean_std([b[fix]["f1"] - b["as predicted"]["f1"] for b in mine]) for fix in fixes]
+            lines.append(f"| {model} | " + " | ".join(f"{100 * m:+.1f} ± {100 * s:.1f}" for m, s in gains) + " |")
+    return lines
 
 
 def replace_section(text: str, section: str) -> str:

@@ -144,12 +144,14 @@ def _number(value: float | None, scale: float, digits: int) -> str:
 
 def heldout_options(cfg: DictConfig) -> dict[str, Any]:
     """evaluate_checkpoint's options from a demo run's config: its predict split (the held-out
-    store is all test split), its trainer's accelerator, its evaluation's pictures and blind prior."""
+    store is all test split), its trainer's accelerator, its evaluation's pictures, blind prior
+    and error budget."""
     evaluation = cfg.evaluation
     return {
         "split": cfg.data.splits.predict, "accelerator": cfg.trainer.accelerator,
         "num_pictures": evaluation.num_pictures, "picture_height": evaluation.picture_height,
         "blind_prior": evaluation.blind_prior, "prior_store": evaluation.prior_store,
+        "error_budget": evaluation.error_budget,
     }  # fmt: skip
 
 

@@ -50,6 +50,17 @@ def test_long_range_and_no_pictures(tmp_path, capsys):
     assert json.loads(written[0].read_text())["metric"]["extra_ranges"] == [100.0, 150.0]
 
 
+def test_the_error_budget_is_asked_for(tmp_path, capsys):
+    data = write_prediction_set(tmp_path)
+    plain = json.loads(run(load_eval_config(options(data, tmp_path / "plain", "pictures.num_frames=0")))[0].read_text())
+    assert "error_budget" not in plain
+    written = run(load_eval_config(options(data, tmp_path / "out", "error_budget=true", "pictures.num_frames=0")))
+    budget = json.loads(written[0].read_text())["error_budget"]
+    assert budget["as predicted"]["f1"] == pytest.approx(plain["overall"]["f1"])
+    assert budget["missed lanes"]["f1"] >= budget["as predicted"]["f1"]
+    assert "Where the F1 goes" in capsys.readouterr().out and "| far positions |" in written[1].read_text()
+
+
 def test_a_malformed_prediction_is_named(tmp_path):
     data = write_prediction_set(tmp_path)
     bad = data.pred_file("b")

@@ -38,6 +38,7 @@ class EvalConfig:
     images: Optional[str] = None
     blind_prior: bool = MISSING
     prior_store: Optional[str] = None
+    error_budget: bool = MISSING
     pictures: PicturesConfig = field(default_factory=PicturesConfig)
 
 

@@ -12,6 +12,10 @@ Three tables:
    unweighted mean over the scenarios (SparseLaneSTP's Table 4, Bi²Lane's Table II).
 3. **Per scenario**: every metric of each scenario.
 
+A report may also carry an **error budget** (:mod:`lanelab.metrics.error_budget`): the F1 with each
+kind of error fixed by the ground truth, one at a time (near and far positions, extents, missed
+and false lanes), a table of its own and ``error_budget`` in the JSON.
+
 A report may carry a **reference** scored on the same frames and ground truth: the blind prior
 (:mod:`lanelab.evaluation.blind_prior`, a prediction that looks at no image). It gets a row
 in the first two tables, beside the evaluated predictions, and a section of its own (what it
@@ -32,6 +36,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from lanelab.atomic_file import atomic_output
+from lanelab.metrics.error_budget import budget_table
 from lanelab.metrics.openlane import RATE_KEYS, FrameResult, OpenLaneConfig, summarize
 from lanelab.metrics.scenarios import Scenario, markdown_table, mean_f1, scenario_rows
 
@@ -39,6 +44,7 @@ REPORT_JSON = "report.json"
 REPORT_MARKDOWN = "report.md"
 PICTURES_PNG = "pictures.png"  # the pictures beside the report (lanelab.evaluation.pictures)
 REFERENCE_KEY = "blind_prior"  # report.json's key of the reference (lanelab.evaluation.blind_prior)
+ERROR_BUDGET_KEY = "error_budget"  # report.json's key of the error budget (lanelab.metrics.error_budget)
 
 
 @dataclass(frozen=True)
@@ -67,7 +73,8 @@ class Report:
     :func:`~lanelab.metrics.scenarios.scenario_rows` row per scenario (group, scenario and
     the same keys). inputs: where the numbers come from (name -> path), for the header.
     name: the row label of the evaluated predictions beside a reference ("model", ...).
-    reference: the blind prior on the same frames, or None (not asked for).
+    reference: the blind prior on the same frames, or None (not asked for). error_budget: an
+    :func:`~lanelab.metrics.error_budget.error_budget` of the predictions, or None.
     """
 
     config: OpenLaneConfig
@@ -76,6 +83,7 @@ class Report:
     inputs: dict[str, str]
     name: str = "predictions"
     reference: Reference | None = None
+    error_budget: dict[str, dict[str, float | int]] | None = None
 
 
 def build_report(
@@ -85,11 +93,14 @@ def build_report(
     inputs: Mapping[str, str] | None = None,
     name: str = "predictions",
     reference: Reference | None = None,
+    error_budget: Mapping[str, Mapping[str, float | int]] | None = None,
 ) -> Report:
     """The report of frame results ((frame id, result), as evaluate_frames returns them),
-    with a reference scored on the same frames if given (:func:`build_reference`)."""
+    with a reference scored on the same frames if given (:func:`build_reference`) and the
+    predictions' error budget if given."""
     overall = summarize(result for _, result in results)
-    return Report(config, overall, scenario_rows(dict(results), scenarios), dict(inputs or {}), name, reference)
+    budget = None if error_budget is None else {name: dict(scores) for name, scores in error_budget.items()}
+    return Report(config, overall, scenario_rows(dict(results), scenarios), dict(inputs or {}), name, reference, budget)
 
 
 def build_reference(
@@ -143,6 +154,8 @@ def to_json(report: Report) -> dict[str, Any]:
         "scenarios": report.scenarios,
         "mean_scenario_f1": {group: mean_f1(rows) for group, rows in _groups(report.scenarios).items()},
     }
+    if report.error_budget is not None:
+        data[ERROR_BUDGET_KEY] = report.error_budget
     reference = report.reference
     if reference is not None:
         data[REFERENCE_KEY] = {"name": reference.name, "description": reference.description, **reference.details}
@@ -205,6 +218,8 @@ def _tables(report: Report) -> list[tuple[str, str]]:
     if report.scenarios:
         rows = [_renamed(row, names) for row in report.scenarios]
         tables.append(("Per scenario", markdown_table(rows, ["group", "scenario", "num_frames", *metrics])))
+    if report.error_budget is not None:
+        tables.append(("Where the F1 goes: each kind of error fixed with the ground truth", budget_table(report.error_budget)))
     return tables
 
 

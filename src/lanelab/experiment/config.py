@@ -47,6 +47,7 @@ class EvaluationConfig:
     picture_height: int = MISSING
     blind_prior: bool = MISSING
     prior_store: str | None = None
+    error_budget: bool = MISSING
 
 
 @dataclass

@@ -3,6 +3,7 @@ clip store, printed and written as the papers' tables, with pictures of a few fr
 
     lanelab-eval gt=DIR pred=DIR test_list=FILE out=DIR [long_range=true] [scenario_lists=DIR] [images=DIR] [prior_store=DIR]
     lanelab-eval checkpoint=FILE store=DIR [split=test] out=DIR [accelerator=cpu] [blind_prior=false] [prior_store=DIR]
+    either with [error_budget=true]: a table of where the F1 goes (lanelab.metrics.error_budget)
 
 Options are Hydra overrides of ``conf/eval.yaml``. Writes ``<out>/report.json``,
 ``<out>/report.md`` and ``<out>/pictures.png``; a checkpoint's predictions, with the store's
@@ -62,6 +63,7 @@ def run(cfg: EvalConfig) -> list[Path]:
         write_png,
     )
     from lanelab.evaluation.report import build_report, to_text, write_report
+    from lanelab.metrics.error_budget import error_budget_of_files
     from lanelab.metrics.scenarios import scenarios_of
     from lanelab.openlane.lists import read_scenario_lists
 
@@ -74,7 +76,7 @@ def run(cfg: EvalConfig) -> list[Path]:
 
         options = {"split": cfg.split, "accelerator": cfg.accelerator, "num_pictures": cfg.pictures.num_frames,
                    "picture_height": cfg.pictures.height, "blind_prior": cfg.blind_prior,
-                   "prior_store": cfg.prior_store}  # fmt: skip
+                   "prior_store": cfg.prior_store, "error_budget": cfg.error_budget}  # fmt: skip
         evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, **options)
         written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
         return [path for path in written if path.exists()]  # no pictures when num_frames=0
@@ -87,7 +89,8 @@ def run(cfg: EvalConfig) -> list[Path]:
     reference = None
     if cfg.blind_prior and cfg.prior_store is not None:
         reference = blind_prior_reference([cfg.prior_store], cfg.gt, cfg.test_list, config, scenarios)
-    report = build_report(results, config, scenarios, inputs, reference=reference)
+    budget = error_budget_of_files(cfg.gt, cfg.pred, cfg.test_list, config) if cfg.error_budget else None
+    report = build_report(results, config, scenarios, inputs, reference=reference, error_budget=budget)
     print(to_text(report))
     written = write_report(report, cfg.out)
 

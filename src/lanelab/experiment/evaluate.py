@@ -52,6 +52,7 @@ from lanelab.experiment.config import validate
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.lightning.pictures import log_pictures_to, takes_images
+from lanelab.metrics.error_budget import error_budget_of_files
 from lanelab.metrics.openlane import evaluate_frames
 from lanelab.metrics.scenarios import OPENLANE_TAG_GROUPS, SCENARIO_GROUPS, tag_scenarios
 from lanelab.openlane.file_paths import FILE_PATH_TAG, frame_id, store_file_path
@@ -78,7 +79,8 @@ def evaluate(
     """Predict, score, write the report and pictures under options.out (see the module).
 
     ckpt_path: the weights (None: those in memory). options: ``out``, ``num_pictures``,
-    ``picture_height``, ``blind_prior``, ``prior_store`` (conf/train.yaml ``evaluation``).
+    ``picture_height``, ``blind_prior``, ``prior_store``, ``error_budget`` (conf/train.yaml
+    ``evaluation``).
     The blind prior comes from the train split of ``prior_store``, else (null, or no prior
     there) of the datamodule's store. Returns the report on rank zero.
     """
@@ -103,7 +105,10 @@ def evaluate(
         stores = [store for store in (options.get("prior_store"), datamodule.store) if store]
         reference = blind_prior_reference(stores, out / GROUND_TRUTH, out / TEST_LIST, module.metric_config, scenarios)
     inputs = {"store": str(datamodule.store), "out": str(out)}
-    report = build_report(results, module.metric_config, scenarios, inputs, name="model", reference=reference)
+    budget = None
+    if options.get("error_budget", False):
+        budget = error_budget_of_files(out / GROUND_TRUTH, out / PREDICTIONS, out / TEST_LIST, module.metric_config)
+    report = build_report(results, module.metric_config, scenarios, inputs, "model", reference, budget)
     print(to_text(report))
     written = write_report(report, out)
 
@@ -127,6 +132,7 @@ def evaluate_checkpoint(
     picture_height: int,
     blind_prior: bool,
     prior_store: str | Path | None,
+    error_budget: bool = False,
 ) -> dict:
     """Score a lanelab-train checkpoint on one split of a clip store, on one device of the
     accelerator ("cpu", "gpu", "auto"): the predictions, report and pictures (num_pictures
@@ -136,7 +142,8 @@ def evaluate_checkpoint(
     The blind prior (unless blind_prior is False) comes from the train split of prior_store,
     or where that is None from the store the checkpoint was trained on (its run config's
     ``data.store``), else from the evaluated store's own train split; the report says why when
-    neither has one.
+    neither has one. error_budget: the report also shows where the F1 goes
+    (:mod:`lanelab.metrics.error_budget`).
     """
     cfg = OmegaConf.create(run_config(checkpoint))
     trained_on = OmegaConf.select(cfg, "data.store")
@@ -145,7 +152,7 @@ def evaluate_checkpoint(
         "data": {"store": str(store), "splits": {"predict": split}},
         "paths": {"output_dir": str(out)},
         "evaluation": {"enabled": True, "out": str(out), "num_pictures": num_pictures, "picture_height": picture_height,
-                       "blind_prior": blind_prior,
+                       "blind_prior": blind_prior, "error_budget": error_budget,
                        "prior_store": None if prior_store is None and trained_on is None else str(prior_store or trained_on)},
         "trainer": {"accelerator": accelerator, "devices": 1, "num_nodes": 1, "strategy": "auto"},
     })  # fmt: skip

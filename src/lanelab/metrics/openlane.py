@@ -25,7 +25,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -33,7 +33,13 @@ from lanelab.lanes import LEFT_CURBSIDE, RIGHT_CURBSIDE
 from lanelab.metrics.assignment import min_cost_assignment
 from lanelab.metrics.lane_sampling import overlaps_y_range, prune_to_box, resample_in_y
 from lanelab.openlane.lists import read_test_list
-from lanelab.openlane.read import OpenLaneFormatError, read_ground_truth, read_prediction
+from lanelab.openlane.read import (
+    GroundTruthFrame,
+    OpenLaneFormatError,
+    PredictionFrame,
+    read_ground_truth,
+    read_prediction,
+)
 from lanelab.openlane.write import VISIBILITY_THRESHOLD
 
 
@@ -162,7 +168,7 @@ class FrameResult:
 
 
 @dataclass
-class _Sampled:
+class SampledLanes:
     """Lanes resampled at the y samples: x, z (L, S); visible (L, S) bool, the official
     per-sample visibility (within the lane's y extent and the x range); seen (L, S) bool,
     visible and seen by the lane's own visibility (Vis-IoU); category (L,) and index (L,),
@@ -194,20 +200,31 @@ def evaluate_frame(
     below config.visibility_threshold are dropped, so that the result equals that of a prediction
     file holding only the visible points. Official OpenLane predictions carry no visibility.
     """
-    y_samples = config.y_samples
-    if pred_visibility is None:
-        pred_visibility = [np.ones(len(lane)) for lane in pred_lanes]
-    gt = _sample_lanes(gt_lanes, gt_visibility, gt_categories, lambda v: v > 0, config)
+    gt = sample_ground_truth(gt_lanes, gt_visibility, gt_categories, config)
+    pred = sample_predictions(pred_lanes, pred_categories, config, pred_visibility)
+    return _match_and_count(gt, pred, config.y_samples, config)
+
+
+def sample_ground_truth(
+    lanes: Sequence[np.ndarray], visibility: Sequence[np.ndarray], categories: Sequence[int], config: OpenLaneConfig
+) -> SampledLanes:
+    """Ground-truth lanes as :func:`evaluate_frame` scores them: points with visibility <= 0
+    dropped, pruned and resampled at the config's y samples."""
+    return _sample_lanes(lanes, visibility, categories, lambda v: v > 0, config)
+
+
+def sample_predictions(
+    lanes: Sequence[np.ndarray],
+    categories: Sequence[int],
+    config: OpenLaneConfig,
+    visibility: Sequence[np.ndarray] | None = None,
+) -> SampledLanes:
+    """Predicted lanes as :func:`evaluate_frame` scores them (visibility: see there)."""
+    if visibility is None:
+        visibility = [np.ones(len(lane)) for lane in lanes]
     # Quirk: predictions skip the visibility step of the official code but get the same range
     # tests; dropping their invisible points here stands for leaving them out of the file.
-    pred = _sample_lanes(
-        pred_lanes,
-        pred_visibility,
-        pred_categories,
-        lambda v: v > config.visibility_threshold,
-        config,
-    )
-    return _match_and_count(gt, pred, y_samples, config)
+    return _sample_lanes(lanes, visibility, categories, lambda v: v > config.visibility_threshold, config)
 
 
 def _sample_lanes(
@@ -216,7 +233,7 @@ def _sample_lanes(
     categories: Sequence[int],
     keep: Callable[[np.ndarray], np.ndarray],
     config: OpenLaneConfig,
-) -> _Sampled:
+) -> SampledLanes:
     """Prune and resample lanes (N_i, 2 or 3) as the official evaluator does.
 
     A lane keeps its points whose visibility (N_i,) passes `keep`, needs two of them, a
@@ -242,9 +259,9 @@ def _sample_lanes(
         rows.append((x, z, visible, seen, category, index))
     if not rows:
         empty, no_ids = np.zeros((0, len(y_samples))), np.zeros(0, dtype=np.int64)
-        return _Sampled(empty, empty, empty.astype(bool), empty.astype(bool), no_ids, no_ids)
+        return SampledLanes(empty, empty, empty.astype(bool), empty.astype(bool), no_ids, no_ids)
     x, z, visible, seen, category, index = zip(*rows)
-    return _Sampled(
+    return SampledLanes(
         np.stack(x), np.stack(z), np.stack(visible), np.stack(seen), np.array(category),
         np.array(index),
     )
@@ -261,7 +278,7 @@ def _seen_at(
 
 
 def _match_and_count(
-    gt: _Sampled, pred: _Sampled, y_samples: np.ndarray, config: OpenLaneConfig
+    gt: SampledLanes, pred: SampledLanes, y_samples: np.ndarray, config: OpenLaneConfig
 ) -> FrameResult:
     # All GT x pred pairs at once: (G, P, S), samples contiguous in the last axis so that
     # every sum below adds the same numbers in the same order as the official 1-D sums.
@@ -404,12 +421,22 @@ def evaluate_frames(
     the same place); a prediction naming no listed ground truth is an error. Raises
     OpenLaneFormatError for unreadable or malformed files.
     """
+    return [
+        (rel, evaluate_frame(gt.lanes, gt.visibility, gt.categories, pred.lanes, pred.categories, config))
+        for rel, gt, pred in paired_frames(gt_dir, pred_dir, test_list)
+    ]
+
+
+def paired_frames(
+    gt_dir: str | os.PathLike[str], pred_dir: str | os.PathLike[str], test_list: str | os.PathLike[str]
+) -> Iterator[tuple[str, GroundTruthFrame, PredictionFrame]]:
+    """(frame id, ground truth, prediction) of every frame of a test list, paired as
+    :func:`evaluate_frames` pairs them. Raises OpenLaneFormatError as it does."""
     relative_paths = read_test_list(test_list)
     ground_truths = {}
     for rel in relative_paths:
         frame = read_ground_truth(Path(gt_dir) / rel)
         ground_truths[frame.file_path] = frame  # Quirk: a repeated file_path keeps the last
-    results = []
     for rel in relative_paths:
         pred_path = Path(pred_dir) / rel
         pred = read_prediction(pred_path)
@@ -419,11 +446,7 @@ def evaluate_frames(
                 pred_path,
                 f"file_path {pred.file_path!r} names no ground-truth frame of the test list",
             )
-        result = evaluate_frame(
-            gt.lanes, gt.visibility, gt.categories, pred.lanes, pred.categories, config
-        )
-        results.append((rel, result))
-    return results
+        yield rel, gt, pred
 
 
 def evaluate(
