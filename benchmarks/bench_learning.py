@@ -40,6 +40,7 @@ import torch
 from lanelab.atomic_file import atomic_output
 from lanelab.demo import best_checkpoint, heldout_options, prepare_stores
 from lanelab.evaluation.report import ERROR_BUDGET_KEY, REFERENCE_KEY
+from lanelab.metrics.error_budget import gains_table
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.train import train
@@ -188,21 +189,14 @@ def report(summary: dict, models: list[str], png: str) -> str:
 
 
 def budget_lines(runs: list[dict], models: list[str]) -> list[str]:
-    """Where the held-out F1 goes (lanelab.metrics.error_budget), per model: the F1 gained by
-    fixing each kind of error with the ground truth, mean ± std over seeds; [] without budgets."""
-    budgets = [run for run in runs if run.get("budget")]
+    """Where the held-out F1 goes (lanelab.metrics.error_budget), per model over its seeds; []
+    without budgets."""
+    budgets = {model: [run["budget"] for run in runs if run["model"] == model and run.get("budget")] for model in models}
+    budgets = {model: mine for model, mine in budgets.items() if mine}
     if not budgets:
         return []
-    fixes = [name for name in budgets[0]["budget"] if name != "as predicted"]
-    lines = ["", "Where the held-out F1 goes: the points each model would gain with one kind of error fixed by the "
-             "ground truth (`lanelab.metrics.error_budget`; mean ± std over seeds).", "",
-             "| model | " + " | ".join(fixes) + " |", "|---|" + "---:|" * len(fixes)]  # fmt: skip
-    for model in models:
-        mine = [run["budget"] for run in budgets if run["model"] == model]
-        if mine:
-            gains = [_mean_std([b[fix]["f1"] - b["as predicted"]["f1"] for b in mine]) for fix in fixes]
-            lines.append(f"| {model} | " + " | ".join(f"{100 * m:+.1f} ± {100 * s:.1f}" for m, s in gains) + " |")
-    return lines
+    return ["", "Where the held-out F1 goes: the points each model would gain with one kind of error fixed by the "
+            "ground truth (`lanelab.metrics.error_budget`; mean ± std over seeds).", "", gains_table(budgets)]
 
 
 def replace_section(text: str, section: str) -> str:

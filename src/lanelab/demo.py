@@ -15,7 +15,9 @@
    and written to ``<demo.out>/comparison.md``, with a "blind prior" row: the training
    store's mean lane layout predicted for every frame without looking at the images
    (:mod:`lanelab.evaluation.blind_prior`), scored on the same held-out ground truth. A model
-   has learnt something from the camera only where it beats that row.
+   has learnt something from the camera only where it beats that row. Below it, where each
+   model's F1 goes: the points it would gain with one kind of error fixed by the ground truth
+   (:mod:`lanelab.metrics.error_budget`).
 
 Everything it runs is configured in ``conf/experiment/demo.yaml``; any key of it or of
 ``lanelab-train``'s config can be overridden. The drive-log tools run as their own commands
@@ -37,10 +39,12 @@ from omegaconf import DictConfig
 
 from lanelab.atomic_file import atomic_output
 from lanelab.evaluation.blind_prior import NAME as BLIND_PRIOR_NAME
+from lanelab.evaluation.report import ERROR_BUDGET_KEY
 from lanelab.evaluation.report import REFERENCE_KEY as BLIND_PRIOR
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.train import run_errors_exit, train
+from lanelab.metrics.error_budget import gains_table
 from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
 
 COMPARISON_MD = "comparison.md"
@@ -81,6 +85,10 @@ def demo(arguments: list[str]) -> None:
                                              **heldout_options(base))  # fmt: skip
 
     table = comparison(reports, steps, demo)
+    budgets = {model: [report[ERROR_BUDGET_KEY]] for model, report in reports.items() if ERROR_BUDGET_KEY in report}
+    if budgets:
+        table += ("\nWhere the F1 goes: the points each model would gain with one kind of error fixed by the ground "
+                  f"truth (lanelab.metrics.error_budget):\n\n{gains_table(budgets)}")
     with atomic_output(out / COMPARISON_MD) as tmp:
         tmp.write_text(f"# lanelab-demo: held-out drives\n\n{table}")
     print(f"\nHeld-out drives ({', '.join(demo.test_logs)}), {_minutes(start)} in all:\n\n{table}")

@@ -22,6 +22,7 @@ def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     main([f"demo.out={tmp_path}", *MINIATURE])
     table = (tmp_path / COMPARISON_MD).read_text()
     assert "| sparselanestp |" in table and "| latr_baseline |" in table and "F1 fog (%)" in table
+    assert "Where the F1 goes" in table and "| predictions | F1 (%) | near positions |" in table
     for model in ("sparselanestp", "latr_baseline"):
         assert (tmp_path / model / "heldout" / "pictures.png").is_file()
     assert "report and pictures in" in capsys.readouterr().out

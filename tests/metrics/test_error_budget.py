@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lanelab.evaluation.report import ERROR_BUDGET_KEY, build_report, to_json, to_markdown
-from lanelab.metrics.error_budget import FIXES, associate, budget_table, error_budget
+from lanelab.metrics.error_budget import FIXES, associate, budget_table, error_budget, gains_table
 from lanelab.metrics.openlane import OpenLaneConfig, evaluate_frame, sample_ground_truth, sample_predictions
 from lanelab.openlane.read import GroundTruthFrame, PredictionFrame
 
@@ -90,6 +90,16 @@ def test_as_predicted_is_the_metric_itself():
     budget = error_budget([(gt_frame, pred_frame)])
     direct = evaluate_frame(gt_frame.lanes, gt_frame.visibility, gt_frame.categories, pred_frame.lanes, pred_frame.categories)
     assert counts(budget["as predicted"]) == (direct.recall_tp, direct.precision_tp, direct.pred_count)
+
+
+def test_budgets_compare_as_gains_with_their_spread():
+    one = error_budget([frame([lane(1.75), lane(5.25)], [lane(1.75)])])  # 66.7 %, a lane missed
+    two = error_budget([frame([lane(1.75), lane(5.25)], [lane(1.75), lane(5.25)])])  # 100 %
+    table = gains_table({"model": [one, two], "prior": [one]})
+    assert table.splitlines()[0].startswith("| predictions | F1 (%) | near positions | far positions |")
+    assert "| model | 83.3 ± 23.6 | +0.0 ± 0.0 |" in table  # seeds: mean ± sample std
+    assert table.splitlines()[3].startswith("| prior | 66.7 | +0.0 |")
+    assert "| +33.3 |" in table.splitlines()[3]  # the prior's missed lane
 
 
 def test_the_report_shows_the_budget():

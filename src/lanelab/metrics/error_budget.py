@@ -26,7 +26,7 @@ rewritten one (the correction is interpolated linearly between them).
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -136,6 +136,25 @@ def budget_table(budget: Mapping[str, Mapping[str, float | int]]) -> str:
             f"| {s['x_error_close']:.3f} / {s['x_error_far']:.3f} | {s['pred_lanes']} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def gains_table(budgets: Mapping[str, Sequence[Mapping[str, Mapping[str, float | int]]]]) -> str:
+    """A Markdown table comparing error budgets: one row per label (a model), its F1 as predicted
+    and the points each fix gains, mean ± std over the label's budgets (seeds) when several."""
+    fixes = [name for name in next(iter(budgets.values()))[0] if name != "as predicted"]
+    lines = ["| predictions | F1 (%) | " + " | ".join(fixes) + " |", "|---|" + "---:|" * (len(fixes) + 1)]
+    for label, runs in budgets.items():
+        base = [run["as predicted"]["f1"] for run in runs]
+        columns = [base] + [[run[fix]["f1"] - f1 for run, f1 in zip(runs, base)] for fix in fixes]
+        cells = [_mean_std(values, signed=i > 0) for i, values in enumerate(columns)]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _mean_std(fractions: Sequence[float], signed: bool) -> str:
+    """Percent (points when signed) of the mean, ± the sample std when there are several."""
+    text = f"{100 * np.mean(fractions):{'+' if signed else ''}.1f}"
+    return text + (f" ± {100 * np.std(fractions, ddof=1):.1f}" if len(fractions) > 1 else "")
 
 
 def budget_counts(budget: Mapping[str, Mapping[str, float | int]]) -> str:
