@@ -21,7 +21,9 @@ from lanelab.metrics.error_budget import budget_counts, budget_table, error_budg
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("eval_dir", type=Path)
-    parser.add_argument("--max-distance", type=float, default=2.0, help="metres: the loosest association of a prediction with a lane")
+    parser.add_argument(
+        "--max-distance", type=float, default=2.0, help="metres: the loosest association of a prediction with a lane"
+    )
     args = parser.parse_args()
     start = time.perf_counter()
     d = args.eval_dir

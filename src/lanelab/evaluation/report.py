@@ -219,7 +219,8 @@ def _tables(report: Report) -> list[tuple[str, str]]:
         rows = [_renamed(row, names) for row in report.scenarios]
         tables.append(("Per scenario", markdown_table(rows, ["group", "scenario", "num_frames", *metrics])))
     if report.error_budget is not None:
-        tables.append(("Where the F1 goes: each kind of error fixed with the ground truth", budget_table(report.error_budget)))
+        title = "Where the F1 goes: each kind of error fixed with the ground truth"
+        tables.append((title, budget_table(report.error_budget)))
     return tables
 
 

@@ -64,7 +64,9 @@ class _Frame:
     false: list[int]
 
 
-def associate(gt: SampledLanes, pred: SampledLanes, config: OpenLaneConfig, max_distance: float) -> list[tuple[int, int]]:
+def associate(
+    gt: SampledLanes, pred: SampledLanes, config: OpenLaneConfig, max_distance: float
+) -> list[tuple[int, int]]:
     """One-to-one (ground-truth row, prediction row) pairs of minimum total cost, the cost of a
     pair being its mean |x difference| over the close-range samples both cover (all common
     samples when fewer than three are close). Pairs costlier than max_distance (metres) or
@@ -114,9 +116,8 @@ def error_budget(
         results = []
         for gt_frame, frame in sampled:
             lanes = _as_points(fix(frame, config), config)
-            results.append(
-                evaluate_frame(gt_frame.lanes, gt_frame.visibility, gt_frame.categories, lanes, [1] * len(lanes), config)
-            )
+            categories = [1] * len(lanes)  # the F1 does not look at them
+            results.append(evaluate_frame(gt_frame.lanes, gt_frame.visibility, gt_frame.categories, lanes, categories, config))
         budget[name] = {**summarize(results), **counts}
     return budget
 
@@ -180,30 +181,33 @@ def error_budget_of_files(
 
 # --- the fixes: each maps a frame to predicted lanes (x, z, covered) at the y samples ----------
 
-_Lanes = list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+_Lane = tuple[np.ndarray, np.ndarray, np.ndarray]  # x, z, covered: (S,) each
+_Rewrite = Callable[[_Lane, _Lane, OpenLaneConfig], _Lane]  # (ground truth, prediction) -> prediction
 
 
-def _predicted(frame: _Frame, rows: Iterable[int] | None = None) -> _Lanes:
-    pred = frame.pred
-    rows = range(len(pred.x)) if rows is None else rows
-    return [(pred.x[p], pred.z[p], pred.visible[p]) for p in rows]
+def _row(lanes: SampledLanes, i: int) -> _Lane:
+    return lanes.x[i], lanes.z[i], lanes.visible[i]
 
 
-def _fix_pairs(rewrite: Callable[[tuple, tuple, OpenLaneConfig], tuple]) -> Callable[[_Frame, OpenLaneConfig], _Lanes]:
+def _predicted(frame: _Frame, rows: Iterable[int] | None = None) -> list[_Lane]:
+    rows = range(len(frame.pred.x)) if rows is None else rows
+    return [_row(frame.pred, p) for p in rows]
+
+
+def _fix_pairs(rewrite: _Rewrite) -> Callable[[_Frame, OpenLaneConfig], list[_Lane]]:
     """A fix that rewrites each associated prediction from its ground truth; the rest as is."""
 
-    def fix(frame: _Frame, config: OpenLaneConfig) -> _Lanes:
-        gt, pred = frame.gt, frame.pred
-        paired = [rewrite((gt.x[g], gt.z[g], gt.visible[g]), (pred.x[p], pred.z[p], pred.visible[p]), config) for g, p in frame.pairs]
+    def fix(frame: _Frame, config: OpenLaneConfig) -> list[_Lane]:
+        paired = [rewrite(_row(frame.gt, g), _row(frame.pred, p), config) for g, p in frame.pairs]
         return paired + _predicted(frame, frame.false)
 
     return fix
 
 
-def _positions(part: str | None) -> Callable[[tuple, tuple, OpenLaneConfig], tuple]:
+def _positions(part: str | None) -> _Rewrite:
     """Rewrite x and z of the samples of one part of the y range ("close", "far"; None: all)."""
 
-    def rewrite(gt: tuple, pred: tuple, config: OpenLaneConfig) -> tuple:
+    def rewrite(gt: _Lane, pred: _Lane, config: OpenLaneConfig) -> _Lane:
         (gx, gz, gv), (px, pz, pv) = gt, pred
         in_part = np.ones(len(px), dtype=bool)
         if part is not None:
@@ -223,7 +227,7 @@ def _positions(part: str | None) -> Callable[[tuple, tuple, OpenLaneConfig], tup
     return rewrite
 
 
-def _extents(gt: tuple, pred: tuple, config: OpenLaneConfig) -> tuple:
+def _extents(gt: _Lane, pred: _Lane, config: OpenLaneConfig) -> _Lane:
     """The prediction over the ground truth's samples, extended straight past its own ends."""
     (_, _, gv), (px, pz, pv) = gt, pred
     return _extend(px, pv), _extend(pz, pv), gv
@@ -241,16 +245,15 @@ def _extend(values: np.ndarray, covered: np.ndarray) -> np.ndarray:
     return out
 
 
-def _missed_added(frame: _Frame, config: OpenLaneConfig) -> _Lanes:
-    gt = frame.gt
-    return _predicted(frame) + [(gt.x[g], gt.z[g], gt.visible[g]) for g in frame.missed]
+def _missed_added(frame: _Frame, config: OpenLaneConfig) -> list[_Lane]:
+    return _predicted(frame) + [_row(frame.gt, g) for g in frame.missed]
 
 
-def _false_removed(frame: _Frame, config: OpenLaneConfig) -> _Lanes:
+def _false_removed(frame: _Frame, config: OpenLaneConfig) -> list[_Lane]:
     return _predicted(frame, sorted(p for _, p in frame.pairs))
 
 
-_FIX_STEPS: dict[str, Callable[[_Frame, OpenLaneConfig], _Lanes]] = {
+_FIX_STEPS: dict[str, Callable[[_Frame, OpenLaneConfig], list[_Lane]]] = {
     "as predicted": lambda frame, config: _predicted(frame),
     "near positions": _fix_pairs(_positions("close")),
     "far positions": _fix_pairs(_positions("far")),
@@ -261,7 +264,7 @@ _FIX_STEPS: dict[str, Callable[[_Frame, OpenLaneConfig], _Lanes]] = {
 }
 
 
-def _as_points(lanes: _Lanes, config: OpenLaneConfig) -> list[np.ndarray]:
+def _as_points(lanes: list[_Lane], config: OpenLaneConfig) -> list[np.ndarray]:
     """Lanes at the y samples -> (n, 3) point arrays of their covered samples, as a prediction
     file would hold them."""
     y = config.y_samples
