@@ -73,6 +73,14 @@ def test_extents_extend_a_short_prediction_along_its_own_line():
     assert budget["extents"]["x_error_far"] == pytest.approx(0.0, abs=1e-9)  # the slope went on, not a constant
 
 
+def test_frames_without_predictions_or_lanes():
+    budget = error_budget([frame([lane(1.75)], []), frame([], [lane(-1.75)]), frame([], [])])
+    assert counts(budget["as predicted"]) == (0, 0, 1)
+    assert counts(budget["missed lanes"]) == (1, 1, 2)  # the first frame's lane added
+    assert counts(budget["false lanes"]) == (0, 0, 0)  # the second frame's prediction removed
+    assert budget["as predicted"]["missed"] == budget["as predicted"]["false"] == 1
+
+
 def test_association_is_one_to_one_and_bounded():
     config = OpenLaneConfig()
     gt_frame, pred_frame = frame([lane(1.75)], [lane(1.9), lane(1.6), lane(4.5)])
