@@ -56,6 +56,14 @@ def test_a_near_fix_carries_its_correction_on_and_a_far_fix_leaves_the_near_rang
     assert counts(budget["far positions"]) == (0, 0, 1)  # 38 near samples still 1.7 m off: under 75 %
 
 
+def test_far_positions_reach_to_the_long_range_metrics_last_sample():
+    y = np.arange(0.0, 210.0)
+    off_beyond_100 = lane(np.where(y > 100, 1.75 + 3.0, 1.75), y)
+    budget = error_budget([frame([lane(1.75, y)], [off_beyond_100])], OpenLaneConfig.long_range())
+    assert counts(budget["as predicted"]) == (0, 0, 1)  # half its samples are 3 m off
+    assert counts(budget["far positions"]) == (1, 1, 1)
+
+
 def test_the_extents_fix_ends_a_lane_where_its_ground_truth_ends():
     short_gt = lane(1.75, np.arange(0.0, 51.0))  # seen to 50 m, predicted to 110 m
     budget = error_budget([frame([short_gt], [lane(1.8)])])

@@ -10,7 +10,8 @@ each fix rewrites the predictions and the frame is scored again by the metric it
 
 - ``near positions``: the associated lanes' x and z where y <= the metric's close range are the
   ground truth's; beyond, each lane keeps its own shape, moved by its last near correction;
-- ``far positions``: the same beyond the close range, the near range left as predicted;
+- ``far positions``: the same beyond the close range (to the last sample, with the long-range
+  metric too), the near range left as predicted;
 - ``positions``: both;
 - ``extents``: each associated lane covers the samples its ground truth covers (where it
   ends, where it starts), extended straight past its own ends;
@@ -205,14 +206,14 @@ def _fix_pairs(rewrite: _Rewrite) -> Callable[[_Frame, OpenLaneConfig], list[_La
 
 
 def _positions(part: str | None) -> _Rewrite:
-    """Rewrite x and z of the samples of one part of the y range ("close", "far"; None: all)."""
+    """Rewrite x and z of the samples of one part of the y range: "close" (the metric's close
+    range), "far" (every sample beyond it, whatever further ranges the config has) or None (all)."""
 
     def rewrite(gt: _Lane, pred: _Lane, config: OpenLaneConfig) -> _Lane:
         (gx, gz, gv), (px, pz, pv) = gt, pred
-        in_part = np.ones(len(px), dtype=bool)
-        if part is not None:
-            in_part[:] = False
-            in_part[dict(config.error_ranges)[part]] = True
+        close = np.zeros(len(px), dtype=bool)
+        close[dict(config.error_ranges)["close"]] = True
+        in_part = {"close": close, "far": ~close, None: np.ones_like(close)}[part]
         anchors = np.flatnonzero(gv & pv & in_part)
         if len(anchors) == 0:
             return px, pz, pv
