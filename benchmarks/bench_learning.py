@@ -126,6 +126,7 @@ def run_one(model: str, seed: int, stores: tuple[Path, Path], args: argparse.Nam
         "heldout": {key: report["overall"].get(key) for key in SCORES},
         "blind_prior": None if prior is None else {key: prior.get(key) for key in SCORES},
         "budget": report.get(ERROR_BUDGET_KEY),
+        "prior_budget": report.get(REFERENCE_KEY, {}).get(ERROR_BUDGET_KEY),
         "curves": curves,
     }  # fmt: skip
 
@@ -195,6 +196,9 @@ def budget_lines(runs: list[dict], models: list[str]) -> list[str]:
     budgets = {model: mine for model, mine in budgets.items() if mine}
     if not budgets:
         return []
+    prior = next((run["prior_budget"] for run in runs if run.get("prior_budget")), None)
+    if prior is not None:
+        budgets["blind prior"] = [prior]
     return ["", "Where the held-out F1 goes: the points each model would gain with one kind of error fixed by the "
             "ground truth (`lanelab.metrics.error_budget`; mean ± std over seeds).", "", gains_table(budgets)]
 

@@ -86,6 +86,9 @@ def demo(arguments: list[str]) -> None:
 
     table = comparison(reports, steps, demo)
     budgets = {model: [report[ERROR_BUDGET_KEY]] for model, report in reports.items() if ERROR_BUDGET_KEY in report}
+    prior = next((report[BLIND_PRIOR] for report in reports.values() if ERROR_BUDGET_KEY in report.get(BLIND_PRIOR, {})), None)
+    if budgets and prior is not None:
+        budgets[BLIND_PRIOR_NAME] = [prior[ERROR_BUDGET_KEY]]
     if budgets:
         table += ("\nWhere the F1 goes: the points each model would gain with one kind of error fixed by the ground "
                   f"truth (lanelab.metrics.error_budget):\n\n{gains_table(budgets)}")

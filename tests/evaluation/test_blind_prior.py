@@ -196,3 +196,17 @@ def test_lanelab_eval_shows_the_prior_only_with_a_prior_store(prior_store: Path,
     assert "blind prior" in capsys.readouterr().out
     run(load_eval_config([*files, f"out={tmp_path / 'off'}", f"prior_store={prior_store}", "blind_prior=false"]))
     assert "blind_prior" not in json.loads((tmp_path / "off" / "report.json").read_text())
+
+
+def test_the_error_budget_puts_the_prior_beside_the_predictions(prior_store: Path, tmp_path: Path, capsys) -> None:
+    data = write_prediction_set(tmp_path)
+    files = [f"gt={data.gt}", f"pred={data.pred}", f"test_list={data.test_list}", "pictures.num_frames=0"]
+    run(load_eval_config([*files, f"out={tmp_path / 'out'}", f"prior_store={prior_store}", "error_budget=true"]))
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    prior_budget = report["blind_prior"]["error_budget"]
+    assert prior_budget["as predicted"]["f1"] == pytest.approx(report["blind_prior"]["overall"]["f1"])
+    assert prior_budget["false lanes"]["pred_lanes"] <= prior_budget["as predicted"]["pred_lanes"]
+    markdown = (tmp_path / "out" / "report.md").read_text()
+    assert "## Where the F1 goes, beside the blind prior" in markdown
+    assert f"| predictions | {100 * report['overall']['f1']:.1f} |" in markdown
+    assert f"| {NAME} | {100 * report['blind_prior']['overall']['f1']:.1f} |" in markdown

@@ -41,11 +41,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from lanelab.evaluation.report import Reference, build_reference
+from lanelab.evaluation.report import ERROR_BUDGET_KEY, Reference, build_reference
+from lanelab.metrics.error_budget import error_budget as budget_of
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frame
 from lanelab.metrics.scenarios import Scenario
 from lanelab.openlane.lists import read_test_list
-from lanelab.openlane.read import GroundTruthFrame, read_ground_truth
+from lanelab.openlane.read import GroundTruthFrame, PredictionFrame, read_ground_truth
 from lanelab.openlane.write import write_json
 
 NAME = "blind prior"  # the row label in reports and tables
@@ -249,11 +250,13 @@ def blind_prior_reference(
     config: OpenLaneConfig,
     scenarios: Sequence[Scenario] = (),
     split: str = "train",
+    error_budget: bool = False,
 ) -> Reference:
     """The blind prior as a report's reference: computed from the first of ``stores`` whose
     ``split`` gives one (the others are the fallbacks, in order), scored on the test list's
-    frames against gt_dir and grouped by the report's scenarios. When no store gives one,
-    the reference says why, store by store, and has no scores."""
+    frames against gt_dir and grouped by the report's scenarios; with error_budget, its
+    :func:`~lanelab.metrics.error_budget.error_budget` is in its details (``error_budget``).
+    When no store gives one, the reference says why, store by store, and has no scores."""
     problems = []
     for store in dict.fromkeys(str(store) for store in stores):
         try:
@@ -262,8 +265,12 @@ def blind_prior_reference(
             problems.append(str(err))
             continue
         results = score_blind_prior(prior, gt_dir, test_list, config)
-        return build_reference(NAME, describe(prior, problems), results, scenarios, prior_details(prior),
-                               layout_table(prior))  # fmt: skip
+        details = prior_details(prior)
+        if error_budget:
+            lanes, categories = prior.prediction_lanes()
+            frames = [(gt, PredictionFrame(gt.file_path, lanes, categories)) for _, gt in _ground_truth(gt_dir, test_list)]
+            details[ERROR_BUDGET_KEY] = budget_of(frames, config)
+        return build_reference(NAME, describe(prior, problems), results, scenarios, details, layout_table(prior))
     why = "; ".join(problems) or "no clip store to compute it from"
     return build_reference(NAME, f"No blind prior could be computed: {why}.", None,
                            details={"unavailable": why})  # fmt: skip

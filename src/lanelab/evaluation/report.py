@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from lanelab.atomic_file import atomic_output
-from lanelab.metrics.error_budget import budget_table
+from lanelab.metrics.error_budget import budget_table, gains_table
 from lanelab.metrics.openlane import RATE_KEYS, FrameResult, OpenLaneConfig, summarize
 from lanelab.metrics.scenarios import Scenario, markdown_table, mean_f1, scenario_rows
 
@@ -221,6 +221,9 @@ def _tables(report: Report) -> list[tuple[str, str]]:
     if report.error_budget is not None:
         title = "Where the F1 goes: each kind of error fixed with the ground truth"
         tables.append((title, budget_table(report.error_budget)))
+        if scored and ERROR_BUDGET_KEY in reference.details:
+            budgets = {report.name: [report.error_budget], reference.name: [reference.details[ERROR_BUDGET_KEY]]}
+            tables.append((f"Where the F1 goes, beside the {reference.name}: points gained by each fix", gains_table(budgets)))
     return tables
 
 

@@ -88,7 +88,8 @@ def run(cfg: EvalConfig) -> list[Path]:
     inputs = {"gt": cfg.gt, "pred": cfg.pred, "test list": cfg.test_list}
     reference = None
     if cfg.blind_prior and cfg.prior_store is not None:
-        reference = blind_prior_reference([cfg.prior_store], cfg.gt, cfg.test_list, config, scenarios)
+        reference = blind_prior_reference([cfg.prior_store], cfg.gt, cfg.test_list, config, scenarios,
+                                          error_budget=cfg.error_budget)  # fmt: skip
     budget = error_budget_of_files(cfg.gt, cfg.pred, cfg.test_list, config) if cfg.error_budget else None
     report = build_report(results, config, scenarios, inputs, reference=reference, error_budget=budget)
     print(to_text(report))

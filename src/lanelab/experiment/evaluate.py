@@ -103,7 +103,8 @@ def evaluate(
     reference = None
     if options.get("blind_prior", True):
         stores = [store for store in (options.get("prior_store"), datamodule.store) if store]
-        reference = blind_prior_reference(stores, out / GROUND_TRUTH, out / TEST_LIST, module.metric_config, scenarios)
+        reference = blind_prior_reference(stores, out / GROUND_TRUTH, out / TEST_LIST, module.metric_config, scenarios,
+                                          error_budget=options.get("error_budget", False))  # fmt: skip
     inputs = {"store": str(datamodule.store), "out": str(out)}
     budget = None
     if options.get("error_budget", False):
