@@ -40,10 +40,10 @@ import torch
 from lanelab.atomic_file import atomic_output
 from lanelab.demo import best_checkpoint, heldout_options, prepare_stores
 from lanelab.evaluation.report import ERROR_BUDGET_KEY, REFERENCE_KEY
-from lanelab.metrics.error_budget import gains_table
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.train import train
+from lanelab.metrics.error_budget import gains_table
 from lanelab.metrics.openlane import DETECTION_SCORES, OpenLaneConfig
 from lanelab.viz.charts import chart_grid, line_chart
 

@@ -44,8 +44,8 @@ from lanelab.evaluation.report import REFERENCE_KEY as BLIND_PRIOR
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.experiment.train import run_errors_exit, train
-from lanelab.metrics.error_budget import gains_table
 from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
+from lanelab.metrics.error_budget import gains_table
 
 COMPARISON_MD = "comparison.md"
 
@@ -84,14 +84,7 @@ def demo(arguments: list[str]) -> None:
         reports[model] = evaluate_checkpoint(best_checkpoint(run / "train"), test_store, run / "heldout",
                                              **heldout_options(base))  # fmt: skip
 
-    table = comparison(reports, steps, demo)
-    budgets = {model: [report[ERROR_BUDGET_KEY]] for model, report in reports.items() if ERROR_BUDGET_KEY in report}
-    prior = next((report[BLIND_PRIOR] for report in reports.values() if ERROR_BUDGET_KEY in report.get(BLIND_PRIOR, {})), None)
-    if budgets and prior is not None:
-        budgets[BLIND_PRIOR_NAME] = [prior[ERROR_BUDGET_KEY]]
-    if budgets:
-        table += ("\nWhere the F1 goes: the points each model would gain with one kind of error fixed by the ground "
-                  f"truth (lanelab.metrics.error_budget):\n\n{gains_table(budgets)}")
+    table = comparison(reports, steps, demo) + budget_comparison(reports)
     with atomic_output(out / COMPARISON_MD) as tmp:
         tmp.write_text(f"# lanelab-demo: held-out drives\n\n{table}")
     print(f"\nHeld-out drives ({', '.join(demo.test_logs)}), {_minutes(start)} in all:\n\n{table}")
@@ -142,6 +135,20 @@ def comparison(reports: dict[str, dict[str, Any]], steps: dict[str, int], demo: 
         return table + f"\n{prior['description']}\n"
     return table + (f"\n{BLIND_PRIOR_NAME}: the mean lane layout of {prior['store']} ({prior['split']} split), "
                     "straight and flat, predicted for every frame without looking at the images.\n")  # fmt: skip
+
+
+def budget_comparison(reports: dict[str, dict[str, Any]]) -> str:
+    """Where each model's F1 goes, beside the blind prior's (their reports' error budgets,
+    :mod:`lanelab.metrics.error_budget`); "" when the reports have none."""
+    budgets = {model: [report[ERROR_BUDGET_KEY]] for model, report in reports.items() if ERROR_BUDGET_KEY in report}
+    if not budgets:
+        return ""
+    priors = [report[BLIND_PRIOR][ERROR_BUDGET_KEY] for report in reports.values()
+              if ERROR_BUDGET_KEY in report.get(BLIND_PRIOR, {})]  # fmt: skip
+    if priors:  # every report scores the same prior on the same frames
+        budgets[BLIND_PRIOR_NAME] = priors[:1]
+    return ("\nWhere the F1 goes: the points each model would gain with one kind of error fixed by the ground truth "
+            f"(lanelab.metrics.error_budget):\n\n{gains_table(budgets)}")
 
 
 def _scenario_f1(report: dict[str, Any], group: str, scenario: str) -> float | None:

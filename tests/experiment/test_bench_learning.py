@@ -41,3 +41,20 @@ def test_the_section_replaces_its_old_self_and_nothing_else():
     assert "new numbers" in replaced and "old numbers" not in replaced
     assert replaced.startswith("# Results\n\n## A\n\nold a\n\n") and replaced.endswith("## B\n\nb\n")
     assert bench.replace_section("# Results\n", "X\n") == "# Results\n\nX\n"
+
+
+def budget(f1: float, missed: float) -> dict:
+    """An error budget with every fix at the predictions' F1 but "missed lanes"."""
+    fixes = ["as predicted", "near positions", "far positions", "positions", "extents", "missed lanes", "false lanes"]
+    return {fix: {"f1": missed if fix == "missed lanes" else f1} for fix in fixes}
+
+
+def test_the_report_says_where_each_models_f1_goes_beside_the_prior():
+    runs = {f"a s{s}": run("a", s, f1) | {"budget": budget(f1, f1 + gain), "prior_budget": budget(0.4, 0.5)}
+            for s, f1, gain in [(0, 0.6, 0.1), (1, 0.7, 0.2)]}  # fmt: skip
+    markdown = bench.report({"command": "python x", "machine": "here", "runs": runs}, ["a"], "c.png")
+    assert "Where the held-out F1 goes" in markdown
+    assert "| a | 65.0 ± 7.1 | +0.0 ± 0.0 |" in markdown and "| +15.0 ± 7.1 | +0.0 ± 0.0 |" in markdown
+    assert "| blind prior | 40.0 | +0.0 |" in markdown and "| +10.0 | +0.0 |" in markdown
+    without = {label: {k: v for k, v in r.items() if k not in ("budget", "prior_budget")} for label, r in runs.items()}
+    assert "Where the held-out F1 goes" not in bench.report({"command": "x", "machine": "y", "runs": without}, ["a"], "c.png")

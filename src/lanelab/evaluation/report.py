@@ -99,7 +99,7 @@ def build_report(
     with a reference scored on the same frames if given (:func:`build_reference`) and the
     predictions' error budget if given."""
     overall = summarize(result for _, result in results)
-    budget = None if error_budget is None else {name: dict(scores) for name, scores in error_budget.items()}
+    budget = None if error_budget is None else {fix: dict(scores) for fix, scores in error_budget.items()}
     return Report(config, overall, scenario_rows(dict(results), scenarios), dict(inputs or {}), name, reference, budget)
 
 
@@ -223,7 +223,8 @@ def _tables(report: Report) -> list[tuple[str, str]]:
         tables.append((title, budget_table(report.error_budget)))
         if scored and ERROR_BUDGET_KEY in reference.details:
             budgets = {report.name: [report.error_budget], reference.name: [reference.details[ERROR_BUDGET_KEY]]}
-            tables.append((f"Where the F1 goes, beside the {reference.name}: points gained by each fix", gains_table(budgets)))
+            title = f"Where the F1 goes, beside the {reference.name}: points gained by each fix"
+            tables.append((title, gains_table(budgets)))
     return tables
 
 

@@ -47,7 +47,7 @@ class EvaluationConfig:
     picture_height: int = MISSING
     blind_prior: bool = MISSING
     prior_store: str | None = None
-    error_budget: bool = MISSING
+    error_budget: bool = False  # a default: the run configs inside older checkpoints lack the key
 
 
 @dataclass
