@@ -36,7 +36,7 @@ from lanelab.metrics.assignment import min_cost_assignment
 from lanelab.metrics.openlane import (
     OpenLaneConfig,
     SampledLanes,
-    evaluate_frame,
+    evaluate_sampled,
     paired_frames,
     sample_ground_truth,
     sample_predictions,
@@ -74,10 +74,8 @@ def associate(
     sharing fewer than three samples are left unpaired."""
     if len(gt.x) == 0 or len(pred.x) == 0:
         return []
-    close = np.zeros(len(config.y_samples), dtype=bool)
-    close[dict(config.error_ranges)["close"]] = True
     both = gt.visible[:, None] & pred.visible[None]  # (G, P, S)
-    near = both & close
+    near = both & _close_samples(config)
     use = np.where((near.sum(-1) >= _MIN_COMMON_SAMPLES)[..., None], near, both)
     count = use.sum(-1)
     dx = np.abs(gt.x[:, None] - pred.x[None])
@@ -105,20 +103,20 @@ def error_budget(
         pairs = associate(gt, pred, config, max_distance)
         missed = sorted(set(range(len(gt.x))) - {g for g, _ in pairs})
         false = sorted(set(range(len(pred.x))) - {p for _, p in pairs})
-        sampled.append((gt_frame, _Frame(gt, pred, pairs, missed, false)))
+        sampled.append(_Frame(gt, pred, pairs, missed, false))
     counts = {
-        "associated": sum(len(f.pairs) for _, f in sampled),
-        "missed": sum(len(f.missed) for _, f in sampled),
-        "false": sum(len(f.false) for _, f in sampled),
+        "associated": sum(len(f.pairs) for f in sampled),
+        "missed": sum(len(f.missed) for f in sampled),
+        "false": sum(len(f.false) for f in sampled),
     }
     budget = {}
     for name in ("as predicted", *FIXES):
         fix = _FIX_STEPS[name]
         results = []
-        for gt_frame, frame in sampled:
+        for frame in sampled:  # the ground truth sampled once, scored against every fix
             lanes = _as_points(fix(frame, config), config)
             categories = [1] * len(lanes)  # the F1 does not look at them
-            results.append(evaluate_frame(gt_frame.lanes, gt_frame.visibility, gt_frame.categories, lanes, categories, config))
+            results.append(evaluate_sampled(frame.gt, sample_predictions(lanes, categories, config), config))
         budget[name] = {**summarize(results), **counts}
     return budget
 
@@ -211,8 +209,7 @@ def _positions(part: str | None) -> _Rewrite:
 
     def rewrite(gt: _Lane, pred: _Lane, config: OpenLaneConfig) -> _Lane:
         (gx, gz, gv), (px, pz, pv) = gt, pred
-        close = np.zeros(len(px), dtype=bool)
-        close[dict(config.error_ranges)["close"]] = True
+        close = _close_samples(config)
         in_part = {"close": close, "far": ~close, None: np.ones_like(close)}[part]
         anchors = np.flatnonzero(gv & pv & in_part)
         if len(anchors) == 0:
@@ -263,6 +260,13 @@ _FIX_STEPS: dict[str, Callable[[_Frame, OpenLaneConfig], list[_Lane]]] = {
     "missed lanes": _missed_added,
     "false lanes": _false_removed,
 }
+
+
+def _close_samples(config: OpenLaneConfig) -> np.ndarray:
+    """(S,) bool: the y samples of the metric's close range."""
+    close = np.zeros(len(config.y_samples), dtype=bool)
+    close[dict(config.error_ranges)["close"]] = True
+    return close
 
 
 def _as_points(lanes: list[_Lane], config: OpenLaneConfig) -> list[np.ndarray]:

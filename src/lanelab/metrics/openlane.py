@@ -202,6 +202,12 @@ def evaluate_frame(
     """
     gt = sample_ground_truth(gt_lanes, gt_visibility, gt_categories, config)
     pred = sample_predictions(pred_lanes, pred_categories, config, pred_visibility)
+    return evaluate_sampled(gt, pred, config)
+
+
+def evaluate_sampled(gt: SampledLanes, pred: SampledLanes, config: OpenLaneConfig) -> FrameResult:
+    """:func:`evaluate_frame` of lanes already sampled (:func:`sample_ground_truth`,
+    :func:`sample_predictions`): for scoring one frame's ground truth against several predictions."""
     return _match_and_count(gt, pred, config.y_samples, config)
 
 
