@@ -219,11 +219,14 @@ def score_blind_prior(
     ground truth in gt_dir with :func:`~lanelab.metrics.openlane.evaluate_frame`: the
     results :func:`~lanelab.metrics.openlane.evaluate_frames` gives on the prediction files
     of :func:`write_blind_prior_predictions`, without writing them."""
+    return _scored(prior, _ground_truth(gt_dir, test_list), config)
+
+
+def _scored(
+    prior: BlindPrior, frames: Sequence[tuple[str, GroundTruthFrame]], config: OpenLaneConfig
+) -> list[tuple[str, FrameResult]]:
     lanes, categories = prior.prediction_lanes()
-    return [
-        (rel, evaluate_frame(gt.lanes, gt.visibility, gt.categories, lanes, categories, config))
-        for rel, gt in _ground_truth(gt_dir, test_list)
-    ]
+    return [(rel, evaluate_frame(gt.lanes, gt.visibility, gt.categories, lanes, categories, config)) for rel, gt in frames]
 
 
 def write_blind_prior_predictions(
@@ -264,12 +267,13 @@ def blind_prior_reference(
         except BlindPriorError as err:
             problems.append(str(err))
             continue
-        results = score_blind_prior(prior, gt_dir, test_list, config)
+        frames = _ground_truth(gt_dir, test_list)  # read once: scored, and the budget's
+        results = _scored(prior, frames, config)
         details = prior_details(prior)
         if error_budget:
             lanes, categories = prior.prediction_lanes()
-            frames = [(gt, PredictionFrame(gt.file_path, lanes, categories)) for _, gt in _ground_truth(gt_dir, test_list)]
-            details[ERROR_BUDGET_KEY] = budget_of(frames, config)
+            predicted = [(gt, PredictionFrame(gt.file_path, lanes, categories)) for _, gt in frames]
+            details[ERROR_BUDGET_KEY] = budget_of(predicted, config)
         return build_reference(NAME, describe(prior, problems), results, scenarios, details, layout_table(prior))
     why = "; ".join(problems) or "no clip store to compute it from"
     return build_reference(NAME, f"No blind prior could be computed: {why}.", None,
