@@ -197,6 +197,25 @@ def test_a_padded_frame_passes_the_anchors_on_unrefined():
     assert refined.detection_valid.tolist() == [[False, True]]
 
 
+def test_a_step_moves_each_point_by_its_offsets_from_the_head():
+    """Eq. 2: the head's 2M outputs are the M points' Δx, then their Δz (the layout checkpoints
+    hold); a step adds them to the anchor's x and z, and leaves y alone."""
+    M = 4
+    torch.manual_seed(3)
+    refinement = TemporalRefinement(4, M, 8, 1, alignment=False)
+    torch.nn.init.normal_(refinement.offsets[-1].weight, std=0.1)
+    torch.nn.init.normal_(refinement.offsets[-1].bias, std=0.1)
+    anchors = torch.stack([torch.full((M,), 1.0), torch.linspace(8.0, 30.0, M), torch.zeros(M)], -1)[None]
+    features = torch.randn(1, 2, 4, H // 8, W // 8)
+    refined = refinement(anchors, [0, 1], features, K.expand(1, 2, 3, 3), T_LANE_CAM.expand(1, 2, 4, 4),
+                         poses(2)[None], torch.ones(1, 2, dtype=torch.bool), (H, W))  # fmt: skip
+    offsets = refinement.offsets(refined.features[0].flatten(-2))[0, 0]  # (2M,) of the first step's lane
+    moved = refined.anchors[1][0, 0] - anchors[0]
+    torch.testing.assert_close(moved[:, 0], offsets[:M])
+    torch.testing.assert_close(moved[:, 2], offsets[M:])
+    assert torch.equal(moved[:, 1], torch.zeros(M))
+
+
 def test_two_directions_in_lockstep_compute_what_each_computes_alone():
     M, F, B = 4, 3, 2
     torch.manual_seed(1)

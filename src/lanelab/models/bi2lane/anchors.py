@@ -56,24 +56,33 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
     (B, 4, 4) of images of image_size (H, W) -> grid_sample coordinates (B, ..., 2) in [-1, 1]
     over the image (align_corners=False: -1 and 1 are the image's outer edges), outside it for
     points behind the camera. Computed in float32 at least, outside autocast."""
-    dtype = torch.promote_types(points.dtype, torch.float32)
+    return project_to_grid(points, grid_projection(K, T_lane_cam, image_size))
+
+
+def grid_projection(K: Tensor, T_lane_cam: Tensor, image_size: tuple[int, int]) -> Tensor:
+    """The projection of :func:`sampling_grid` as one matrix (..., 4, 3), float32 at least: N K T_cam_lane
+    transposed, N the pixels' normalisation to [-1, 1], so that lane-frame points p (3,) have the
+    homogeneous grid coordinates p P[:3] + P[3]. K (..., 3, 3), T_lane_cam (..., 4, 4) of images of
+    image_size (H, W). BDTR projects for all its steps at once, then per step only the points."""
+    dtype = torch.promote_types(K.dtype, torch.float32)
+    with torch.autocast(K.device.type, enabled=False):
+        height, width = image_size
+        # N K row by row (u -> 2 u / W - 1): a matrix made on the host could not be captured in a CUDA graph.
+        rows = K.to(dtype).unbind(-2)
+        NK = torch.stack([rows[0] * (2 / width) - rows[2], rows[1] * (2 / height) - rows[2], rows[2]], -2)
+        return (NK @ invert(T_lane_cam.to(dtype))[..., :3, :]).transpose(-1, -2).contiguous()
+
+
+def project_to_grid(points: Tensor, P: Tensor) -> Tensor:
+    """Lane-frame points (B, ..., 3) -> grid_sample coordinates (B, ..., 2) by P (B, 4, 3) of
+    :func:`grid_projection` (as :func:`sampling_grid`): one product and one division a point."""
     shape = points.shape
     with torch.autocast(points.device.type, enabled=False):
-        height, width = image_size
-        # One 3 x 4 projection N K T_cam_lane, N the pixels' normalisation to [-1, 1]: the per-point work is
-        # one product and one division (BDTR projects every anchor point once per history frame).
-        # N K row by row (u -> 2 u / W - 1): a matrix made on the host could not be captured in a CUDA graph.
-        K = K.to(dtype)
-        rows = K.unbind(-2)
-        NK = torch.stack([rows[0] * (2 / width) - rows[2], rows[1] * (2 / height) - rows[2], rows[2]], -2)
-        P = NK @ invert(T_lane_cam.to(dtype))[..., :3, :]  # (B, 3, 4)
-        flat = points.reshape(shape[0], -1, 3).to(dtype)
-        homogeneous = flat @ P[..., :3].transpose(-1, -2).contiguous() + P[..., None, :, 3]
+        flat = points.reshape(shape[0], -1, 3).to(P.dtype)
+        homogeneous = torch.baddbmm(P[:, 3:], flat, P[:, :3])
         depth = homogeneous[..., 2:]  # K's last row is (0, 0, 1): the depth along the optical axis
-        in_front = depth > MIN_DEPTH
-        # Dividing by 1 behind the camera keeps inf / NaN out of the gradients of the points in front.
-        grid = homogeneous[..., :2] / torch.where(in_front, depth, torch.ones_like(depth))
-        grid = torch.where(in_front, grid, torch.full_like(grid, _OUTSIDE))
+        # Clamped, the division stays finite behind the camera: no inf / NaN in the gradients of the points in front.
+        grid = (homogeneous[..., :2] / depth.clamp(min=MIN_DEPTH)).masked_fill_(depth <= MIN_DEPTH, _OUTSIDE)
     return grid.reshape(*shape[:-1], 2)
 
 
@@ -128,5 +137,5 @@ def ego_motion(T_world_lane_to: Tensor, T_world_lane_from: Tensor) -> Tensor:
 
 
 def move_points(T: Tensor, points: Tensor) -> Tensor:
-    """Points (B, A, M, 3) moved by T (B, 4, 4) (e.g. :func:`ego_motion`), in their own dtype."""
-    return transform_points(T.to(points.dtype), points.flatten(1, -2)).reshape(points.shape)
+    """Points (..., A, M, 3) moved by T (..., 4, 4) (e.g. :func:`ego_motion`), in their own dtype."""
+    return transform_points(T.to(points.dtype), points.flatten(-3, -2)).view(points.shape)

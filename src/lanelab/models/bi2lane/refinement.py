@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor, nn
 
-from lanelab.models.bi2lane.anchors import ego_motion, move_points, sample_features, sampling_grid
+from lanelab.models.bi2lane.anchors import ego_motion, grid_projection, move_points, project_to_grid, sample_features
 from lanelab.models.heads import mlp
 
 
@@ -87,7 +87,10 @@ def refine(
 ) -> list[Refined]:
     """The chains of D directions run in lockstep, each with its own offset head, as one batch
     of D x B streams: step s of every chain is one sampling and one (grouped) head call, so two
-    directions cost the kernel launches of one.
+    directions cost the kernel launches of one. What does not depend on the refined anchors
+    (the visited frames, their projections, the ego motions, the offset heads' weights) is
+    prepared for all steps at once, so that a step is a dozen kernels: a history frame's cost,
+    at batch 1 on a GPU, is its launches.
 
     anchors (A, M, 3) in the first frame each direction visits; orders: each direction's visited
     frame indices, all of one length; features (B, F, C, h, w) of every frame; K (B, F, 3, 3),
@@ -102,60 +105,66 @@ def refine(
         raise ValueError("directions run in lockstep with one temporal alignment setting")
     B, current = features.shape[0], features.shape[1] - 1
 
-    def at(tensor: Tensor, step: int) -> Tensor:
-        """(D·B, ...) of the frames the directions visit at this step, by slicing: an index list
-        would be a host-to-device copy, which CUDA graphs refuse."""
-        return torch.cat([tensor[:, order[step]] for order in orders])
+    def visiting(tensor: Tensor) -> Tensor:
+        """(S, D·B, ...): at each step, the frames the directions visit, in one stack of slices (an
+        index list would be a host-to-device copy, which CUDA graphs refuse)."""
+        stacked = torch.stack([tensor[:, order[step]] for step in range(S) for order in orders])
+        return stacked.unflatten(0, (S, D)).flatten(1, 2)
 
     # Metres in at least float32: bf16 steps are half a metre at 100 m.
     points = anchors.to(torch.promote_types(features.dtype, torch.float32)).expand(D * B, *anchors.shape)
-    lanes, sampled_at, detections, detection_valid = [], [], [], []
-    if S > 1:  # the ego motions the steps need, in one batch: into the current frame and into the next visited one
-        visited = torch.stack([at(T_world_lane, step) for step in range(S)], 1)  # (D·B, S, 4, 4)
-        into_current = ego_motion(T_world_lane[:, current, None].repeat(D, 1, 1, 1), visited)
-        into_next = ego_motion(visited[:, 1:], visited[:, :-1])
-        offsets = grouped_mlp([direction.offsets for direction in directions])
+    frames, projections = visiting(features), grid_projection(visiting(K), visiting(T_lane_cam), image_size)
+    lanes, sampled_at, refined_anchors = [], [], []
+    if S > 1:  # the offset heads, the frames' validity and the ego motions into the next visited frames
+        offsets = offset_heads([direction.offsets for direction in directions], features.dtype)
+        visited_valid = visiting(valid)
+        visited = visiting(T_world_lane)  # (S, D·B, 4, 4)
+        rotation, translation = rigid_motion(ego_motion(visited[1:], visited[:-1]), points.dtype)  # into the next
     for step in range(S):
-        grid = sampling_grid(points, at(K, step), at(T_lane_cam, step), image_size)
-        lane = sample_features(at(features, step), grid)  # (D·B, A, M, C)
+        lane = sample_features(frames[step], project_to_grid(points, projections[step]))  # (D·B, A, M, C)
         lanes.append(lane)
         sampled_at.append(points)
         if step == S - 1:
             break
-        shifts = offsets(lane.flatten(-2).reshape(D, -1, lane.shape[-2] * lane.shape[-1]))  # (D, B·A, 2M)
-        dx, dz = shifts.reshape(*lane.shape[:2], 2, -1).unbind(-2)  # (D·B, A, M) each
-        refined = points + torch.stack([dx, torch.zeros_like(dx), dz], dim=-1)  # eq. 2
-        detections.append(move_points(into_current[:, step], refined))
-        step_valid = at(valid, step)
-        detection_valid.append(step_valid)
+        shifts = offsets(lane.reshape(D, -1, lane.shape[-2] * lane.shape[-1]))  # (D, B·A, M·3)
+        refined = points + shifts.view(points.shape)  # eq. 2
+        refined_anchors.append(refined)
         if directions[0].alignment:  # eq. 3
-            refined = move_points(into_next[:, step], refined)
-        points = torch.where(step_valid[:, None, None, None], refined, points)
+            refined = torch.baddbmm(translation[step], refined.flatten(1, 2), rotation[step]).view(points.shape)
+        points = torch.where(visited_valid[step, :, None, None, None], refined, points)
+    if refined_anchors:  # the detections: each step's refined anchors, moved into the current frame
+        steps = torch.stack(refined_anchors, 1)  # (D·B, S - 1, A, M, 3)
+        into_current = ego_motion(T_world_lane[:, current, None], visited[:-1].transpose(0, 1).unflatten(0, (D, B)))
+        found = move_points(into_current.flatten(0, 1), steps).unflatten(0, (D, B))
+        found_valid = visited_valid[:-1].T.unflatten(0, (D, B))
+    else:
+        found = points.new_zeros(D, B, 0, *points.shape[1:])
+        found_valid = valid.new_zeros(D, B, 0)
     results = []
     for d in range(D):
         mine = slice(d * B, (d + 1) * B)
-        if detections:
-            found = torch.stack([t[mine] for t in detections], 1)
-            found_valid = torch.stack([t[mine] for t in detection_valid], 1)
-        else:
-            found, found_valid = points.new_zeros(B, 0, *points.shape[1:]), valid.new_zeros(B, 0)
-        results.append(Refined([t[mine] for t in lanes], [t[mine] for t in sampled_at], found, found_valid))
+        results.append(Refined([t[mine] for t in lanes], [t[mine] for t in sampled_at], found[d], found_valid[d]))
     return results
 
 
-def grouped_mlp(mlps: Sequence[nn.Sequential]) -> Callable[[Tensor], Tensor]:
-    """x (D, N, in) -> (D, N, out), slice d through mlps[d] (Linear and activation layers, all
-    of one layout), as batched matrix products: one kernel a layer for all D."""
-    if len(mlps) == 1:
-        return lambda x: mlps[0](x)
-    layers = []
-    for group in zip(*mlps):
-        if isinstance(group[0], nn.Linear):
-            weight = torch.stack([layer.weight for layer in group]).transpose(1, 2)  # (D, in, out)
-            bias = torch.stack([layer.bias for layer in group])[:, None]  # (D, 1, out)
-            layers.append(lambda x, w=weight, b=bias: torch.baddbmm(b.to(x.dtype), x, w.to(x.dtype)))
-        else:
+def offset_heads(mlps: Sequence[nn.Sequential], dtype: torch.dtype) -> Callable[[Tensor], Tensor]:
+    """The offset heads O (eq. 2) of D directions as one function: lane features x (D, N, M·C),
+    slice d through mlps[d], -> offsets (D, N, M·3) = (Δx, 0, Δz) per point. Each layer is one
+    batched matrix product for all D, with the weights stacked (and cast to dtype) once per call.
+    The last layer's rows are interleaved with zero rows for y, so that a step adds its offsets
+    to the points (M, 3) in one kernel."""
+    layers: list[Callable[[Tensor], Tensor]] = []
+    for index, group in enumerate(zip(*mlps)):
+        if not isinstance(group[0], nn.Linear):
             layers.append(group[0])
+            continue
+        weight = torch.stack([layer.weight for layer in group])  # (D, out, in)
+        bias = torch.stack([layer.bias for layer in group])  # (D, out)
+        if index == len(mlps[0]) - 1:  # (Δx.., Δz..) -> (Δx, 0, Δz) per point
+            weight = _with_zero_y(weight.unflatten(1, (2, -1))).flatten(1, 2)
+            bias = _with_zero_y(bias.unflatten(1, (2, -1))).flatten(1, 2)
+        weight, bias = weight.transpose(1, 2).to(dtype), bias[:, None].to(dtype)
+        layers.append(lambda x, w=weight, b=bias: torch.baddbmm(b, x, w))
 
     def run(x: Tensor) -> Tensor:
         for layer in layers:
@@ -163,3 +172,15 @@ def grouped_mlp(mlps: Sequence[nn.Sequential]) -> Callable[[Tensor], Tensor]:
         return x
 
     return run
+
+
+def _with_zero_y(xz: Tensor) -> Tensor:
+    """(D, 2, M, ...) rows of Δx then Δz -> (D, M, 3, ...) rows (Δx, 0, Δz) per point."""
+    dx, dz = xz.unbind(1)
+    return torch.stack([dx, torch.zeros_like(dx), dz], 2)
+
+
+def rigid_motion(T: Tensor, dtype: torch.dtype) -> tuple[Tensor, Tensor]:
+    """Rigid transforms T (..., 4, 4) as (R^T (..., 3, 3), t (..., 1, 3)) in dtype: points (N, 3)
+    move to ``torch.baddbmm(t, points, R^T)``, one kernel."""
+    return T[..., :3, :3].transpose(-1, -2).to(dtype).contiguous(), T[..., None, :3, 3].to(dtype)
