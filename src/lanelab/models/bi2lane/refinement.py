@@ -121,7 +121,9 @@ def refine(
         visited = visiting(T_world_lane)  # (S, D·B, 4, 4)
         rotation, translation = rigid_motion(ego_motion(visited[1:], visited[:-1]), points.dtype)  # into the next
     for step in range(S):
-        lane = sample_features(frames[step], project_to_grid(points, projections[step]))  # (D·B, A, M, C)
+        # Laid out (A, M, C) once: the offset head reads it flattened, and BLFA's stack of the history reads
+        # contiguous rows instead of grid_sample's (C, A, M) transposed (several times slower on a CPU).
+        lane = sample_features(frames[step], project_to_grid(points, projections[step])).contiguous()  # (D·B, A, M, C)
         lanes.append(lane)
         sampled_at.append(points)
         if step == S - 1:
