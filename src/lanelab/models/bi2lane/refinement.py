@@ -19,8 +19,9 @@ ego motion whatever ``alignment`` says: they are the lanes that frame detected, 
 criterion supervises, as Anchor3DLane supervises every stage of its iterative regression.
 
 The two directions are independent chains of equal length, so :func:`refine` runs them in
-lockstep as one batch (each with its own offset head): at batch 1 a chain step is a few dozen
-small kernels, and the history frames cost launches rather than arithmetic.
+lockstep as one batch (each with its own offset head). At batch 1 on a GPU a history frame costs
+its chain step's kernel launches more than their arithmetic, so everything a step needs that
+does not depend on the refined anchors is prepared once for all steps: a step is fifteen kernels.
 """
 
 from __future__ import annotations
@@ -89,8 +90,7 @@ def refine(
     of D x B streams: step s of every chain is one sampling and one (grouped) head call, so two
     directions cost the kernel launches of one. What does not depend on the refined anchors
     (the visited frames, their projections, the ego motions, the offset heads' weights) is
-    prepared for all steps at once, so that a step is a dozen kernels: a history frame's cost,
-    at batch 1 on a GPU, is its launches.
+    prepared for all steps at once (module doc).
 
     anchors (A, M, 3) in the first frame each direction visits; orders: each direction's visited
     frame indices, all of one length; features (B, F, C, h, w) of every frame; K (B, F, 3, 3),
