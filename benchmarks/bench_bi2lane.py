@@ -2,7 +2,7 @@
 
     python benchmarks/bench_bi2lane.py [--configs tiny paper] [--history 0 1 2 3 4 5] [--device cpu|cuda]
         [--dtype fp32|bf16] [--cuda-graphs on|off] [--malloc default|reuse] [--frames 10] [--warmup 3]
-        [--threads N] [--json out.json]
+        [--threads N] [--json out.json] [--count-operators]
 
 Each configuration is conf/'s: "tiny" = ``experiment=tiny model=bi2lane`` (at its 64 x 96 images),
 "paper" = ``model=bi2lane`` (ResNet-50, Anchor3DLane's anchors) at 360 x 480 (Anchor3DLane's input).
@@ -22,6 +22,11 @@ block of over 32 MB back to the kernel, as a caching allocator (jemalloc, tcmall
 paper configuration's per-frame tensors are tens of megabytes (4431 anchors x 20 points x 64
 channels is 23 MB a frame), and glibc maps each one afresh: on the CPU the page faults of those
 fresh pages, not the arithmetic, were most of what a history frame cost.
+
+``--count-operators`` prints, instead of timings, how many operators that compute a tensor (not
+views) one cached step runs per N, on the CPU but along the GPU's paths (grid_sample, one BLFA
+call over all anchors): at batch 1 on a GPU each is a kernel launch, and launches, not
+arithmetic, are most of what a history frame costs there.
 """
 
 from __future__ import annotations
@@ -38,7 +43,10 @@ from pathlib import Path
 import torch
 from hydra.utils import instantiate
 
+import lanelab.models.bi2lane.anchors as anchors_module
+import lanelab.models.bi2lane.model as model_module
 from lanelab.experiment.config import load_train_config
+from lanelab.models.operator_log import OperatorLog
 
 CONFIGS = {
     "tiny": (["experiment=tiny", "model=bi2lane"], (64, 96)),
@@ -110,6 +118,25 @@ def run(config: str, histories: list[int], args: argparse.Namespace, device: tor
     return rows
 
 
+def count_operators(config: str, histories: list[int]) -> list[dict]:
+    """Operators of one cached step (after a few, so the cache is full) per N, on the CPU as a
+    GPU runs it: grid_sample for every sample and BLFA over all anchors in one call."""
+    device = torch.device("cpu")
+    rows = []
+    anchors_module._LARGE_SAMPLE = model_module._CPU_AGGREGATION_CHUNK = 1 << 62
+    for n in histories:
+        model = build(config, n, device, cuda_graphs=False)
+        frames = clip(n + 2, CONFIGS[config][1], device)
+        with torch.no_grad():
+            model.reset(torch.ones(1, dtype=torch.bool))
+            for frame in frames[:-1]:
+                model.step(frame)
+            with OperatorLog() as log:
+                model.step(frames[-1])
+        rows.append({"config": config, "history_frames": n, "operators": log.kernels()})
+    return rows
+
+
 def reuse_freed_memory() -> None:
     """glibc: serve every allocation from the heap (no fresh mmap) and never trim the heap."""
     libc = ctypes.CDLL("libc.so.6")
@@ -131,11 +158,15 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=3)
     parser.add_argument("--threads", type=int, default=None)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--count-operators", action="store_true", help="count a step's operators instead of timing")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
     if args.malloc == "reuse":
         reuse_freed_memory()
+    if args.count_operators:
+        print_operator_counts(args)
+        return
     device = torch.device(args.device)
     if device.type == "cuda":
         machine = torch.cuda.get_device_name(device)
@@ -160,6 +191,23 @@ def main() -> None:
     if args.json:
         args.json.write_text(json.dumps({"machine": machine, "dtype": args.dtype, "cuda_graphs": args.cuda_graphs,
                                           "malloc": args.malloc, "rows": rows}, indent=1))
+
+
+def print_operator_counts(args: argparse.Namespace) -> None:
+    print("Bi²Lane, operators that compute a tensor in one cached step (each a kernel launch on a GPU)")
+    print("| config | history frames | operators |")
+    print("|---|---:|---:|")
+    rows = []
+    for config in args.configs:
+        mine = count_operators(config, args.history)
+        rows += mine
+        for row in mine:
+            print(f"| {config} | {row['history_frames']} | {row['operators']} |")
+        by = {row["history_frames"]: row["operators"] for row in mine}
+        if {1, 5} <= set(by):
+            print(f"{config}: {(by[5] - by[1]) / 4:.1f} operators per history frame")
+    if args.json:
+        args.json.write_text(json.dumps({"operators": rows}, indent=1))
 
 
 if __name__ == "__main__":

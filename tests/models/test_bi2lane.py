@@ -14,7 +14,6 @@ import torch
 import torch.nn.functional as F
 from hydra.utils import instantiate
 from omegaconf import OmegaConf
-from torch.utils._python_dispatch import TorchDispatchMode
 
 from lanelab.experiment.config import load_train_config
 from lanelab.geometry import make_transform
@@ -30,6 +29,7 @@ from lanelab.models.bi2lane import (
     sampling_grid,
 )
 from lanelab.models.losses import Bi2LaneCriterion
+from lanelab.models.operator_log import OperatorLog
 
 H, W = 64, 96
 K = torch.tensor([[70.0, 0.0, 48.0], [0.0, 70.0, 22.0], [0.0, 0.0, 1.0]])
@@ -366,27 +366,12 @@ def test_bi2lane_streaming_with_graphs_equals_it_without(tiny_net, dtype):
     assert graphed._graphed is None
 
 
-class _HostReads(TorchDispatchMode):
-    """Records the operators that make a tensor from host data or read one back to the host."""
-
-    HOST = {"aten.lift_fresh.default", "aten._local_scalar_dense.default"}
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.found: list[str] = []
-
-    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
-        if str(func) in self.HOST:
-            self.found.append(str(func))
-        return func(*args, **(kwargs or {}))
-
-
 def test_what_the_cuda_graphs_capture_touches_no_host_data(tiny_net):
     """A CUDA graph cannot capture a host-to-device copy or a read back to the host: the calls
     that streaming replays from graphs (_encode, _detect) must hold neither. Checked on the CPU,
     so that CI catches what only a GPU would otherwise show."""
     net = build(tiny_net, num_history_frames=2).eval()
-    spy = _HostReads()
+    spy = OperatorLog()
 
     def watched(fn):
         def call(*args):
@@ -399,7 +384,22 @@ def test_what_the_cuda_graphs_capture_touches_no_host_data(tiny_net):
     with torch.no_grad():
         for f in range(3):
             net.step({key: clip[key][:, f] for key in ("images", "K", "T_lane_cam", "T_world_lane")})
-    assert spy.found == []
+    assert spy.operators  # the calls ran under the log
+    assert spy.host_transfers() == []
+
+
+def test_a_history_frame_adds_a_chain_step_of_few_kernels(tiny_net):
+    """At batch 1 on a GPU a history frame costs its BDTR step's kernel launches more than their
+    arithmetic (benchmarks/RESULTS.md): what does not depend on the refined anchors is prepared
+    once for all steps, and a step stays near fifteen operators (stop 32's took 48)."""
+    counts = {}
+    for n in (1, 3):
+        net = build(tiny_net, num_history_frames=n)
+        batch = window_batch(1, n + 1)
+        with torch.no_grad(), OperatorLog() as log:
+            net(batch)
+        counts[n] = log.kernels()
+    assert (counts[3] - counts[1]) / 2 <= 18, counts
 
 
 # ------------------------------------------------------------------------------ gradients

@@ -1,0 +1,22 @@
+import torch
+
+from lanelab.models.operator_log import OperatorLog
+
+
+def test_it_counts_what_computes_a_tensor_and_not_views():
+    x = torch.randn(4, 3)
+    with OperatorLog() as log:
+        y = x.t().reshape(-1)  # a view, then a copy (the transpose is not contiguous)
+        y = y.view(3, 4)[:, :2]  # views
+        y.relu_()  # in place: it computes
+        torch.empty(3)  # an allocation launches nothing
+    assert log.kernels() == 2
+    assert [str(op) for op in log.operators if "relu" in str(op)] == ["aten.relu_.default"]
+
+
+def test_it_shows_what_moves_data_between_host_and_device():
+    x = torch.randn(3)
+    with OperatorLog() as log:
+        x + torch.tensor([1.0, 2.0, 3.0])  # a tensor made from host data
+        float(x.sum())  # a value read back
+    assert log.host_transfers() == ["aten.lift_fresh.default", "aten._local_scalar_dense.default"]
