@@ -5,7 +5,8 @@
 
 For each configuration three models with random weights stream the same random clip
 (``reset`` once, then ``step`` per frame, eval mode, no gradient):
-- ``SparseLaneSTP``: T = 3 memory frames, sparse STA (SLA + PNA + TCA), Catmull-Rom;
+- ``SparseLaneSTP``: T = 3 memory frames, STA (SLA + PNA + TCA; ``auto``: the fused dense kernel on a
+  GPU, the sparse path on a CPU, as conf/model/sparselanestp.yaml), Catmull-Rom;
 - ``T=0``: the same model without the memory (SLA + PNA only);
 - ``LATR-like``: the single-frame baseline (T = 0, global self-attention, discrete).
 The variants run interleaved, frame by frame, so that load from other processes affects them
@@ -36,7 +37,7 @@ from lanelab.models.categories import NUM_LANE_CATEGORIES
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 _COMMON = dict(
-    dropout=0.1, attention="sparse", use_sla=True, use_pna=True, use_tca=True, pna_neighbors=2,
+    dropout=0.1, attention="auto", use_sla=True, use_pna=True, use_tca=True, pna_neighbors=2,
     tca_neighbors=10, num_classes=NUM_LANE_CATEGORIES, x_range=(-30.0, 30.0), y_range=(3.0, 103.0),
     z_range=(-5.0, 5.0), representation="catmull_rom", head_hidden_layers=2, ground_encoding=True, anchor_span=12.25, dca_content_weights=True,
     lateral_search={"num_candidates": 9, "search_range": 2.0},

@@ -91,4 +91,4 @@ def test_table_1_adds_one_contribution_per_row(tmp_path: Path) -> None:
         net, weights = cfg.model.net, cfg.model.criterion.detection.weights
         rows.append((net.representation, net.attention, net.use_tca, net.num_memory_frames, weights.temporal))
     assert rows == [("discrete", "global", False, 0, 0.0), ("catmull_rom", "global", False, 0, 0.0),
-                    ("catmull_rom", "sparse", True, 3, 0.0), ("catmull_rom", "sparse", True, 3, 0.1)]
+                    ("catmull_rom", "auto", True, 3, 0.0), ("catmull_rom", "auto", True, 3, 0.1)]

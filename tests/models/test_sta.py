@@ -1,3 +1,4 @@
+import dataclasses
 import math
 
 import pytest
@@ -219,6 +220,24 @@ def test_every_parameter_gets_gradient_and_keyless_queries_are_zero():
     bias = only_memory.out_proj.bias
     torch.testing.assert_close(out, bias.expand_as(out))  # zero attention, then the projection
     assert all(g.isfinite().all() for g in grads.values())
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(
+    not torch.cuda.is_available(), reason="needs a CUDA device (run on a device machine)"))])  # fmt: skip
+def test_auto_runs_the_sparse_path_on_a_cpu_and_the_fused_dense_one_on_a_gpu(device, monkeypatch):
+    """Both compute the same (test_sparse_equals_dense_reference); auto picks the faster where it runs."""
+    ran = []
+    for path in ("_sparse", "_dense"):
+        original = getattr(SpatioTemporalAttention, path)
+        monkeypatch.setattr(SpatioTemporalAttention, path,
+                            lambda self, *args, _o=original, _p=path: ran.append(_p) or _o(self, *args))  # fmt: skip
+    layer = SpatioTemporalAttention(16, 4, impl="auto").double().to(device)
+    inputs = {k: v.to(device) if isinstance(v, torch.Tensor) else v for k, v in sta_inputs(torch.float64).items()}
+    memory = MemoryState(*(t.to(device) for t in dataclasses.astuple(inputs["memory"])))
+    with torch.no_grad():
+        layer(inputs["queries"], inputs["query_pos"], inputs["points"], memory, inputs["memory_pos"],
+              inputs["line_mask"])  # fmt: skip
+    assert ran == (["_sparse"] if device == "cpu" else ["_dense"])
 
 
 def test_global_mode_is_full_self_attention():

@@ -85,7 +85,7 @@ class ExplicitStateStep(nn.Module):
         self.net = copy.deepcopy(net)
         settle_ties(self.net)
         for module in self.net.modules():
-            if isinstance(module, SpatioTemporalAttention) and module.impl == "sparse":
+            if isinstance(module, SpatioTemporalAttention) and module.impl in ("auto", "sparse"):
                 module.impl = "dense"
         self.register_buffer("y", torch.as_tensor(y, dtype=torch.float32), persistent=False)
 

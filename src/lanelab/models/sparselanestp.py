@@ -76,8 +76,9 @@ class SparseLaneSTP(nn.Module):
     Decoder: num_layers L, num_heads, ffn_dim, dropout; deformable attention over dca_levels
     FPN levels (LATR: 4, strides 8 to 64) with dca_points samples per head and level;
     dca_content_weights: weigh the samples by their content too (models.deformable_attention).
-    Attention: attention ("sparse" / "dense": STA with masked relations, "global": full
-    self-attention over the N x M queries, the LATR baseline), use_sla, use_pna, use_tca,
+    Attention: attention ("auto" / "sparse" / "dense": STA with masked relations, computed as
+    models.spatio_temporal_attention picks; "global": full self-attention over the N x M
+    queries, the LATR baseline), use_sla, use_pna, use_tca,
     pna_neighbors (2 per adjacent line), tca_neighbors M_TCA.
     Memory: num_memory_frames T (0 disables temporal fusion), num_memory_lines N_mem.
     Heads: num_classes K (without background), x_range, y_range, z_range (metres),
