@@ -1,7 +1,7 @@
 """SparseLaneSTP streaming inference speed and the cost of temporal fusion.
 
     python benchmarks/bench_sparselanestp.py [--configs tiny paper] [--device cpu|cuda]
-        [--dtype fp32|bf16] [--frames 10] [--warmup 3] [--threads N] [--json out.json]
+        [--dtype fp32|bf16] [--frames 10] [--warmup 3] [--threads N] [--json out.json] [--count-operators]
 
 For each configuration three models with random weights stream the same random clip
 (``reset`` once, then ``step`` per frame, eval mode, no gradient):
@@ -13,6 +13,11 @@ The variants run interleaved, frame by frame, so that load from other processes 
 alike; figures are medians over the timed frames (after ``--warmup`` frames). The temporal
 overhead is time(T=3) / time(T=0) - 1; the paper reports 9 % (Fig. 7: 11.0 vs 12.1 FPS
 against LATR with six layers). ``--dtype bf16`` runs under torch.autocast.
+
+``--count-operators`` prints, instead of timings, how many operators that compute a tensor one
+streaming step runs (with a full memory), for STA's sparse and dense paths, counted on the CPU
+(``lanelab.models.operator_log``; the count does not depend on the image size, so small images
+are used). At batch 1 on a GPU each is a kernel launch, and the launches are what a frame costs.
 
 The paper configuration is §5.2's: ResNet-50, 720 x 960, L = 6, N = 40, M = 20, T = 3; the
 rest follows LATR's OpenLane config (C = 256, 4 heads, FFN 2048, x in [-30, 30] m,
@@ -34,6 +39,7 @@ import torch
 
 from lanelab.geometry import make_transform
 from lanelab.models.categories import NUM_LANE_CATEGORIES
+from lanelab.models.operator_log import OperatorLog
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 _COMMON = dict(
@@ -130,6 +136,37 @@ def measure(config: dict, args: argparse.Namespace) -> dict[str, dict]:
     return results
 
 
+def count_operators(config: dict) -> dict[str, dict[str, int]]:
+    """Operators of one streaming step per variant and STA path, on the CPU (module doc)."""
+    counts: dict[str, dict[str, int]] = {}
+    frames = clip(6, (96, 128), torch.device("cpu"))
+    for label, variant in VARIANTS.items():
+        for path in ("sparse", "dense"):
+            torch.manual_seed(0)
+            model = SparseLaneSTP(**{**config["model"], "attention": path, **variant}).eval()
+            with torch.inference_mode():
+                model.reset(torch.ones(1, dtype=torch.bool))
+                for frame in frames[:-1]:  # T = 3 memory frames filled
+                    model.step(frame)
+                with OperatorLog() as log:
+                    model.step(frames[-1])
+            counts.setdefault(label, {})[path] = log.kernels()
+    return counts
+
+
+def print_operator_counts(args: argparse.Namespace) -> None:
+    print("SparseLaneSTP, operators that compute a tensor in one streaming step (each a kernel launch on a GPU)")
+    print("| config | model | STA sparse | STA dense |")
+    print("|---|---|---:|---:|")
+    for name in args.configs:
+        counts = count_operators(CONFIGS[name])
+        for label, by_path in counts.items():
+            print(f"| {name} | {label} | {by_path['sparse']} | {by_path['dense']} |")
+        for path in ("sparse", "dense"):
+            growth = counts["SparseLaneSTP T=3"][path] / counts["T=0"][path] - 1
+            print(f"{name}, STA {path}: the memory (T=3 vs T=0) adds {100 * growth:+.0f} % operators")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--configs", nargs="+", choices=sorted(CONFIGS), default=["tiny", "paper"])
@@ -139,9 +176,13 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=3)
     parser.add_argument("--threads", type=int, help="torch CPU threads")
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--count-operators", action="store_true", help="count a step's operators instead of timing")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.count_operators:
+        print_operator_counts(args)
+        return
 
     rows = []
     print(f"device={args.device} dtype={args.dtype} torch={torch.__version__} threads={torch.get_num_threads()}")
