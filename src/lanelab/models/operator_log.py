@@ -46,5 +46,7 @@ class OperatorLog(TorchDispatchMode):
 
 
 def _computes(op: torch._ops.OpOverload) -> bool:
-    view = any(ret.alias_info is not None and not ret.alias_info.is_write for ret in op._schema.returns)
-    return not view and op not in _NO_KERNEL
+    returns = op._schema.returns
+    tensors = any(isinstance(ret.type, (torch.TensorType, torch.ListType)) for ret in returns)  # not a dtype, a bool
+    view = any(ret.alias_info is not None and not ret.alias_info.is_write for ret in returns)
+    return tensors and not view and op not in _NO_KERNEL

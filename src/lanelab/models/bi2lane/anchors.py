@@ -56,7 +56,8 @@ def sampling_grid(points: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tup
     (B, 4, 4) of images of image_size (H, W) -> grid_sample coordinates (B, ..., 2) in [-1, 1]
     over the image (align_corners=False: -1 and 1 are the image's outer edges), outside it for
     points behind the camera. Computed in float32 at least, outside autocast."""
-    return project_to_grid(points, grid_projection(K, T_lane_cam, image_size))
+    dtype = torch.promote_types(points.dtype, K.dtype)
+    return project_to_grid(points, grid_projection(K.to(dtype), T_lane_cam, image_size))
 
 
 def grid_projection(K: Tensor, T_lane_cam: Tensor, image_size: tuple[int, int]) -> Tensor:
@@ -75,10 +76,12 @@ def grid_projection(K: Tensor, T_lane_cam: Tensor, image_size: tuple[int, int]) 
 
 def project_to_grid(points: Tensor, P: Tensor) -> Tensor:
     """Lane-frame points (B, ..., 3) -> grid_sample coordinates (B, ..., 2) by P (B, 4, 3) of
-    :func:`grid_projection` (as :func:`sampling_grid`): one product and one division a point."""
+    :func:`grid_projection` (as :func:`sampling_grid`): one product and one division a point,
+    in the wider of the two dtypes."""
     shape = points.shape
+    dtype = torch.promote_types(points.dtype, P.dtype)
     with torch.autocast(points.device.type, enabled=False):
-        flat = points.reshape(shape[0], -1, 3).to(P.dtype)
+        flat, P = points.reshape(shape[0], -1, 3).to(dtype), P.to(dtype)
         homogeneous = torch.baddbmm(P[:, 3:], flat, P[:, :3])
         depth = homogeneous[..., 2:]  # K's last row is (0, 0, 1): the depth along the optical axis
         # Clamped, the division stays finite behind the camera: no inf / NaN in the gradients of the points in front.
