@@ -391,7 +391,7 @@ def test_what_the_cuda_graphs_capture_touches_no_host_data(tiny_net):
 def test_a_history_frame_adds_a_chain_step_of_few_kernels(tiny_net):
     """At batch 1 on a GPU a history frame costs its BDTR step's kernel launches more than their
     arithmetic (benchmarks/RESULTS.md): what does not depend on the refined anchors is prepared
-    once for all steps, and a step stays near fifteen operators (stop 32's took 48)."""
+    once for all steps, and a step stays near fifteen operators (stop 32's took 47.5)."""
     counts = {}
     for n in (1, 3):
         net = build(tiny_net, num_history_frames=n)
