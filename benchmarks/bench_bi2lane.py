@@ -123,17 +123,21 @@ def count_operators(config: str, histories: list[int]) -> list[dict]:
     GPU runs it: grid_sample for every sample and BLFA over all anchors in one call."""
     device = torch.device("cpu")
     rows = []
-    anchors_module._LARGE_SAMPLE = model_module._CPU_AGGREGATION_CHUNK = 1 << 62
-    for n in histories:
-        model = build(config, n, device, cuda_graphs=False)
-        frames = clip(n + 2, CONFIGS[config][1], device)
-        with torch.no_grad():
-            model.reset(torch.ones(1, dtype=torch.bool))
-            for frame in frames[:-1]:
-                model.step(frame)
-            with OperatorLog() as log:
-                model.step(frames[-1])
-        rows.append({"config": config, "history_frames": n, "operators": log.kernels()})
+    cpu_paths = anchors_module._LARGE_SAMPLE, model_module._CPU_AGGREGATION_CHUNK
+    anchors_module._LARGE_SAMPLE = model_module._CPU_AGGREGATION_CHUNK = 1 << 62  # never taken
+    try:
+        for n in histories:
+            model = build(config, n, device, cuda_graphs=False)
+            frames = clip(n + 2, CONFIGS[config][1], device)
+            with torch.no_grad():
+                model.reset(torch.ones(1, dtype=torch.bool))
+                for frame in frames[:-1]:
+                    model.step(frame)
+                with OperatorLog() as log:
+                    model.step(frames[-1])
+            rows.append({"config": config, "history_frames": n, "operators": log.kernels()})
+    finally:
+        anchors_module._LARGE_SAMPLE, model_module._CPU_AGGREGATION_CHUNK = cpu_paths
     return rows
 
 
