@@ -9,7 +9,7 @@ carry their positional encodings (eq. 11), values do not (DETR / LATR / StreamPE
 The module returns the attention output after its projection; the decoder layer adds the
 residual and the LayerNorm (post-norm, as LATR's self-attention block).
 
-Three implementations (``impl``) of the same layer:
+Three implementations (``impl``) of the same layer, and a choice between two of them:
 - "sparse": cost follows the active relations, using the structure of the masks:
   SLA is block-diagonal, one M x M attention per line. PNA and TCA keys lie on lines of M
   points (the current lines; the memory's stored lines) near the query's own point index: a
