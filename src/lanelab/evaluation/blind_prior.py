@@ -219,13 +219,14 @@ def score_blind_prior(
     ground truth in gt_dir with :func:`~lanelab.metrics.openlane.evaluate_frame`: the
     results :func:`~lanelab.metrics.openlane.evaluate_frames` gives on the prediction files
     of :func:`write_blind_prior_predictions`, without writing them."""
-    return _scored(prior, _ground_truth(gt_dir, test_list), config)
+    return _scored(*prior.prediction_lanes(), _ground_truth(gt_dir, test_list), config)
 
 
 def _scored(
-    prior: BlindPrior, frames: Sequence[tuple[str, GroundTruthFrame]], config: OpenLaneConfig
-) -> list[tuple[str, FrameResult]]:
-    lanes, categories = prior.prediction_lanes()
+    lanes: list[np.ndarray], categories: list[int], frames: Sequence[tuple[str, GroundTruthFrame]],
+    config: OpenLaneConfig,
+) -> list[tuple[str, FrameResult]]:  # fmt: skip
+    """The prior's lanes and categories scored on every (frame id, ground truth) of frames."""
     return [(rel, evaluate_frame(gt.lanes, gt.visibility, gt.categories, lanes, categories, config)) for rel, gt in frames]
 
 
@@ -268,10 +269,10 @@ def blind_prior_reference(
             problems.append(str(err))
             continue
         frames = _ground_truth(gt_dir, test_list)  # read once: scored, and the budget's
-        results = _scored(prior, frames, config)
+        lanes, categories = prior.prediction_lanes()
+        results = _scored(lanes, categories, frames, config)
         details = prior_details(prior)
         if error_budget:
-            lanes, categories = prior.prediction_lanes()
             predicted = [(gt, PredictionFrame(gt.file_path, lanes, categories)) for _, gt in frames]
             details[ERROR_BUDGET_KEY] = budget_of(predicted, config)
         return build_reference(NAME, describe(prior, problems), results, scenarios, details, layout_table(prior))

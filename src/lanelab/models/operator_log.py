@@ -12,14 +12,8 @@ from typing import Any
 import torch
 from torch.utils._python_dispatch import TorchDispatchMode
 
-# Operators whose outputs are not declared views but that launch no kernel.
-_NO_KERNEL = {
-    torch.ops.aten._unsafe_view.default,
-    torch.ops.aten.empty.memory_format,
-    torch.ops.aten.empty_strided.default,
-    torch.ops.aten._local_scalar_dense.default,
-    torch.ops.aten.lift_fresh.default,
-}
+# Operators that return a tensor not declared a view, but launch no kernel.
+_NO_KERNEL = {torch.ops.aten._unsafe_view.default, torch.ops.aten.empty.memory_format, torch.ops.aten.empty_strided.default}
 # Operators that make a tensor from host data or read one back to the host.
 HOST_TRANSFERS = {torch.ops.aten.lift_fresh.default, torch.ops.aten._local_scalar_dense.default}
 
