@@ -144,7 +144,7 @@ def count_operators(config: dict) -> dict[str, dict[str, int]]:
         for path in ("sparse", "dense"):
             torch.manual_seed(0)
             model = SparseLaneSTP(**{**config["model"], "attention": path, **variant}).eval()
-            with torch.inference_mode():
+            with torch.no_grad():  # not inference mode, which logs composites (linear, dropout) undecomposed
                 model.reset(torch.ones(1, dtype=torch.bool))
                 for frame in frames[:-1]:  # T = 3 memory frames filled
                     model.step(frame)
