@@ -26,7 +26,8 @@ fresh pages, not the arithmetic, were most of what a history frame cost.
 ``--count-operators`` prints, instead of timings, how many operators that compute a tensor (not
 views) one cached step runs per N, on the CPU but along the GPU's paths (grid_sample, one BLFA
 call over all anchors): at batch 1 on a GPU each is a kernel launch, and launches, not
-arithmetic, are most of what a history frame costs there.
+arithmetic, are most of what a history frame costs there. With the count, the megabytes those
+operators write: what is left of a history frame's GPU time once launches are few is memory traffic.
 """
 
 from __future__ import annotations
@@ -135,7 +136,8 @@ def count_operators(config: str, histories: list[int]) -> list[dict]:
                     model.step(frame)
                 with OperatorLog() as log:
                     model.step(frames[-1])
-            rows.append({"config": config, "history_frames": n, "operators": log.kernels()})
+            written = log.bytes_written() / 1e6
+            rows.append({"config": config, "history_frames": n, "operators": log.kernels(), "MB": written})
     finally:
         anchors_module._LARGE_SAMPLE, model_module._CPU_AGGREGATION_CHUNK = cpu_paths
     return rows
@@ -198,18 +200,21 @@ def main() -> None:
 
 
 def print_operator_counts(args: argparse.Namespace) -> None:
-    print("Bi²Lane, operators that compute a tensor in one cached step (each a kernel launch on a GPU)")
-    print("| config | history frames | operators |")
-    print("|---|---:|---:|")
+    print("Bi²Lane, operators that compute a tensor in one cached step (each a kernel launch on a GPU)"
+          " and the MB they write")
+    print("| config | history frames | operators | MB written |")
+    print("|---|---:|---:|---:|")
     rows = []
     for config in args.configs:
         mine = count_operators(config, args.history)
         rows += mine
         for row in mine:
-            print(f"| {config} | {row['history_frames']} | {row['operators']} |")
-        by = {row["history_frames"]: row["operators"] for row in mine}
+            print(f"| {config} | {row['history_frames']} | {row['operators']} | {row['MB']:.0f} |")
+        by = {row["history_frames"]: row for row in mine}
         if {1, 5} <= set(by):
-            print(f"{config}: {(by[5] - by[1]) / 4:.1f} operators per history frame")
+            per_frame = {key: (by[5][key] - by[1][key]) / 4 for key in ("operators", "MB")}
+            print(f"{config}: {per_frame['operators']:.1f} operators and {per_frame['MB']:.0f} MB written"
+                  " per history frame")
     if args.json:
         args.json.write_text(json.dumps({"operators": rows}, indent=1))
 

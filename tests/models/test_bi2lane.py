@@ -232,7 +232,7 @@ def test_two_directions_in_lockstep_compute_what_each_computes_alone():
         alone = direction(anchors, order, *inputs)
         torch.testing.assert_close(joint.detections, alone.detections, atol=1e-5, rtol=1e-5)
         assert torch.equal(joint.detection_valid, alone.detection_valid)
-        for got, want in zip(joint.features + joint.anchors, alone.features + alone.anchors):
+        for got, want in zip([*joint.features, *joint.anchors], [*alone.features, *alone.anchors]):
             torch.testing.assert_close(got, want, atol=1e-5, rtol=1e-5)
     assert not torch.allclose(together[0].anchors[1], together[1].anchors[1])  # the two chains did differ
     with pytest.raises(ValueError, match="lockstep"):
@@ -240,6 +240,26 @@ def test_two_directions_in_lockstep_compute_what_each_computes_alone():
     unaligned = TemporalRefinement(4, M, 8, 1, alignment=False)
     with pytest.raises(ValueError, match="one temporal alignment"):
         refine([forward, unaligned], anchors, orders, *inputs)
+
+
+def test_streaming_writes_the_lanes_into_one_stack_that_equals_the_trained_ones():
+    """Without autograd the chains write each step's lanes straight into the stack BLFA reads (no
+    copy of the history there); with it they are stacked after the chain. Both give the same lanes."""
+    M, F = 4, 3
+    torch.manual_seed(2)
+    directions = [TemporalRefinement(4, M, 8, 1, alignment=True) for _ in range(2)]
+    for refinement in directions:
+        torch.nn.init.normal_(refinement.offsets[-1].weight, std=0.05)
+    anchors = torch.stack([torch.full((M,), 0.5), torch.linspace(8.0, 30.0, M), torch.zeros(M)], -1)[None]
+    inputs = (torch.randn(1, F, 4, H // 8, W // 8), K.expand(1, F, 3, 3), T_LANE_CAM.expand(1, F, 4, 4),
+              poses(F)[None], torch.ones(1, F, dtype=torch.bool), (H, W))  # fmt: skip
+    orders = [[0, 1, 2], [2, 1, 0]]
+    trained = refine(directions, anchors, orders, *inputs)
+    with torch.no_grad():
+        streamed = refine(directions, anchors, orders, *inputs)
+    for got, want in zip(streamed, trained):
+        assert got.features.shape == (F, 1, 1, M, 4)
+        torch.testing.assert_close(got.features, want.features.detach())
 
 
 # -------------------------------------------------------------------------- ablation switches
@@ -450,3 +470,6 @@ def test_the_point_level_is_a_transformer_decoder_layer_over_the_history_frames(
     expected = layer.norm2(x + layer.ffn(x)).reshape(A, M, C)
     assert torch.allclose(got[0], expected, atol=1e-5)
     assert torch.equal(got[1], current[1])  # no real history frame: the current feature as it is
+    # The forward direction hands its history oldest first: the same keys, each with its own age.
+    oldest_first = aggregation(current, history.flip(3), valid.flip(1), oldest_first=True)
+    torch.testing.assert_close(oldest_first, got, atol=1e-6, rtol=1e-6)

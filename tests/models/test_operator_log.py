@@ -9,8 +9,9 @@ def test_it_counts_what_computes_a_tensor_and_not_views():
         y = x.t().reshape(-1)  # a view, then a copy (the transpose is not contiguous)
         y = y.view(3, 4)[:, :2]  # views
         y.relu_()  # in place: it computes
-        torch.empty(3)  # an allocation launches nothing
+        torch.empty(3), x.new_empty(2), torch.empty_like(x)  # allocations launch nothing
     assert log.kernels() == 2
+    assert log.bytes_written() == 12 * 4 + 6 * 4  # the copy's 12 floats, relu_'s 6 (its view's)
     assert [str(op) for op in log.operators if "relu" in str(op)] == ["aten.relu_.default"]
 
 

@@ -41,6 +41,8 @@ def single_query_attention(
     b_q, _, b_v = attention.in_proj_bias.chunk(3)
     q = F.linear(query[..., 0, :], w_q, b_q).unflatten(-1, (H, D)) * D**-0.5  # (..., H, D)
     q_in_key_space = torch.einsum("...hd,hdc->...hc", q, w_k.view(H, D, C))
+    if value is key:  # cast once: under autocast each product would cast the keys (N lanes a point) anew
+        key = value = key.to(q_in_key_space.dtype)
     scores = q_in_key_space @ key.transpose(-1, -2)  # (..., H, S)
     if key_offset is not None:
         scores = scores + q_in_key_space @ key_offset.to(scores.dtype).T

@@ -72,12 +72,13 @@ class BiLevelAggregation(nn.Module):
             self.line = AttentionLayer(embed_dim, num_heads, ffn_dim, dropout)
             self.index = nn.Parameter(torch.randn(num_points, embed_dim) * 0.02)
 
-    def forward(self, current: Tensor, history: Tensor, history_valid: Tensor) -> Tensor:
+    def forward(self, current: Tensor, history: Tensor, history_valid: Tensor, oldest_first: bool = False) -> Tensor:
         """current (B, A, M, C): the current frame's lane features; history (B, A, M, N, C): the
-        history frames', newest first; history_valid (B, N) bool. Returns (B, A, M, C)."""
+        history frames', newest first (``oldest_first``: the other way round), any strides;
+        history_valid (B, N) bool, in the history's order. Returns (B, A, M, C)."""
         lanes = current
         if self.point is not None and history.shape[3] > 0:
-            lanes = self._point_level(lanes, history, history_valid)
+            lanes = self._point_level(lanes, history, history_valid, oldest_first)
         if self.line is not None:
             B, A, M, C = lanes.shape
             tokens = lanes.reshape(B * A, M, C)
@@ -85,15 +86,16 @@ class BiLevelAggregation(nn.Module):
             lanes = self.line(positioned, positioned, tokens).reshape(B, A, M, C)  # eq. 9-10
         return lanes
 
-    def _point_level(self, current: Tensor, history: Tensor, history_valid: Tensor) -> Tensor:
+    def _point_level(self, current: Tensor, history: Tensor, history_valid: Tensor, oldest_first: bool) -> Tensor:
         """Eq. 7-8: each point's query against the same point of every history frame."""
         N = history.shape[3]
         if N >= self.age.shape[0]:
             built = self.age.shape[0] - 1
             raise ValueError(f"{N} history frames, but the point-level aggregation was built for {built}")
+        ages = self.age[1 : N + 1].flip(0) if oldest_first else self.age[1 : N + 1]  # the keys' order is the history's
         query = (current + self.age[0].to(current.dtype)).unsqueeze(-2)  # (B, A, M, 1, C)
         any_valid = history_valid.any(-1)  # (B,)
         # A sample without real history attends to its padding instead (a defined softmax), then keeps its query.
         mask = (~history_valid & any_valid[:, None])[:, None, None, :]  # (B, 1, 1, N)
-        fused = self.point(query, history, history, mask, key_offset=self.age[1 : N + 1])[..., 0, :]
+        fused = self.point(query, history, history, mask, key_offset=ages)[..., 0, :]
         return torch.where(any_valid[:, None, None, None], fused, current)

@@ -49,10 +49,11 @@ from lanelab.models.heads import mlp
 DIRECTIONS = ("forward", "reverse", "bidirectional")
 # The FPN reads C3..C5 and gives one level, stride 8.
 _BACKBONE_STAGES = (1, 2, 3)
-# Anchors per BLFA call on a CPU. Each anchor's aggregation is its own; in chunks, the history's stack and
-# the feed-forward layers' activations (at the paper size N x 23 MB and 90 MB for all 4431 anchors) stay
-# under glibc's 32 MB, above which every allocation is fresh pages from the kernel. Five history frames
-# cost +33-35 % over one with one call, +4-25 % in chunks (glibc's defaults, benchmarks/RESULTS.md).
+# Anchors per BLFA call on a CPU. Each anchor's aggregation is its own; in chunks, the copies of the history
+# that the products make and the feed-forward layers' activations (at the paper size N x 23 MB and 90 MB
+# for all 4431 anchors) stay under glibc's 32 MB, above which every allocation is fresh pages from the
+# kernel. Five history frames cost +33-35 % over one with one call, +4-25 % in chunks (glibc's defaults,
+# benchmarks/RESULTS.md).
 _CPU_AGGREGATION_CHUNK = 512
 # The paper's Table VI goes to 5 history frames; the age embedding of the point level is sized for it.
 MAX_HISTORY_FRAMES = 5
@@ -244,13 +245,16 @@ class Bi2Lane(nn.Module):
         F = features.shape[1]
         camera = (K, T_lane_cam, T_world_lane, valid, image_size)
         orders = {"forward": list(range(F)), "reverse": list(range(F - 1, -1, -1))}
-        history_valid = valid[:, :-1].flip(1)  # newest first
         fused, detections, detection_valid = [], [], []
         chains = refine(self.refinement, self.anchors, [orders[name] for name in self.directions], features, *camera)
         for name, refined, aggregation in zip(self.directions, chains, self.aggregation):
-            by_frame = dict(zip(orders[name], refined.features))
-            history = [by_frame[f] for f in range(F - 2, -1, -1)]  # newest first
-            fused.append(_aggregate(aggregation, by_frame[F - 1], history, history_valid))
+            # The history as the direction visited it (views of its stack): forward oldest first, reverse newest first.
+            lanes = refined.features  # (F, B, A, M, C)
+            if name == "forward":
+                current, history, history_valid = lanes[-1], lanes[:-1], valid[:, :-1]
+            else:
+                current, history, history_valid = lanes[0], lanes[1:], valid[:, :-1].flip(1)
+            fused.append(_aggregate(aggregation, current, history, history_valid, oldest_first=name == "forward"))
             detections.append(refined.detections)
             detection_valid.append(refined.detection_valid)
         lanes = torch.cat(fused, dim=-1).flatten(-2)  # (B, A, M * D * C), eq. 11
@@ -272,15 +276,17 @@ class Bi2Lane(nn.Module):
         return outputs
 
 
-def _aggregate(aggregation: BiLevelAggregation, current: Tensor, history: list[Tensor], history_valid: Tensor) -> Tensor:
-    """BLFA of one direction: current (B, A, M, C) and history [(B, A, M, C)] newest first, stacked
-    (B, A, M, N, C) for the point level; on a CPU in chunks of anchors (_CPU_AGGREGATION_CHUNK)."""
+def _aggregate(
+    aggregation: BiLevelAggregation, current: Tensor, history: Tensor, history_valid: Tensor, oldest_first: bool
+) -> Tensor:
+    """BLFA of one direction: current (B, A, M, C), history (N, B, A, M, C) and history_valid
+    (B, N) in one order of time (``oldest_first`` or newest first), as (B, A, M, N, C) for the
+    point level; on a CPU in chunks of anchors (_CPU_AGGREGATION_CHUNK)."""
     A = current.shape[1]
     chunk = _CPU_AGGREGATION_CHUNK if current.device.type == "cpu" else A
+    history = history.permute(1, 2, 3, 0, 4)
     parts = []
     for start in range(0, A, chunk):
         anchors = slice(start, start + chunk)
-        mine = current[:, anchors]
-        stacked = torch.stack([h[:, anchors] for h in history], 3) if history else mine.unsqueeze(3)[:, :, :, :0]
-        parts.append(aggregation(mine, stacked, history_valid))
+        parts.append(aggregation(current[:, anchors], history[:, anchors], history_valid, oldest_first))
     return parts[0] if len(parts) == 1 else torch.cat(parts, 1)

@@ -7,7 +7,7 @@ refined anchors A + S into the next frame it visits (eq. 3):
     A_next = T_{this -> next}(A + S),
 the temporal alignment of Table VII (``alignment=False``: T is the identity, the detected lane is
 carried in ego coordinates). The forward direction visits t-N, ..., t (eq. 5), the reverse one
-t, t-1, ..., t-N (eq. 6); each yields its lane-feature set, one (B, A, M, C) per frame.
+t, t-1, ..., t-N (eq. 6); each yields its lane-feature set, one (B, A, M, C) per frame, stacked (S, B, A, M, C).
 
 The paper leaves open where the chains start and how padded frames are treated. Both start from
 the configured anchors in the first frame they visit (the reverse one: the current frame's
@@ -22,6 +22,8 @@ The two directions are independent chains of equal length, so :func:`refine` run
 lockstep as one batch (each with its own offset head). At batch 1 on a GPU a history frame costs
 its chain step's kernel launches more than their arithmetic, so everything a step needs that
 does not depend on the refined anchors is prepared once for all steps: a step is fifteen kernels.
+Without autograd (streaming) each step's lanes are written straight into the stack that BLFA reads
+as the history, so that the history is not copied again there.
 """
 
 from __future__ import annotations
@@ -39,13 +41,13 @@ from lanelab.models.heads import mlp
 class Refined(NamedTuple):
     """One direction's result over the frames it visited, in visiting order.
 
-    features: [(B, A, M, C)] the lane feature of each visited frame (eq. 1, 4);
+    features: (S + 1, B, A, M, C) the lane feature of each visited frame (eq. 1, 4);
     anchors: [(B, A, M, 3)] the anchors it was sampled at, in that frame's lane frame;
     detections: (B, S, A, M, 3) the refined anchors A + S of every step but the last, moved into
     the current frame (S = visited frames - 1); detection_valid: (B, S) bool, the step's frame
     was real (not padding)."""
 
-    features: list[Tensor]
+    features: Tensor
     anchors: list[Tensor]
     detections: Tensor
     detection_valid: Tensor
@@ -114,16 +116,20 @@ def refine(
     # Metres in at least float32: bf16 steps are half a metre at 100 m.
     points = anchors.to(torch.promote_types(features.dtype, torch.float32)).expand(D * B, *anchors.shape)
     frames, projections = visiting(features), grid_projection(visiting(K), visiting(T_lane_cam), image_size)
-    lanes, sampled_at, refined_anchors = [], [], []
+    lanes, stack, sampled_at, refined_anchors = [], None, [], []
     if S > 1:  # the offset heads, the frames' validity and the ego motions into the next visited frames
         offsets = offset_heads([direction.offsets for direction in directions], features.dtype)
         visited_valid = visiting(valid)
         visited = visiting(T_world_lane)  # (S, D·B, 4, 4)
         rotation, translation = rigid_motion(ego_motion(visited[1:], visited[:-1]), points.dtype)  # into the next
     for step in range(S):
-        # Laid out (A, M, C) once: the offset head reads it flattened, and BLFA's stack of the history reads
-        # contiguous rows instead of grid_sample's (C, A, M) transposed (several times slower on a CPU).
-        lane = sample_features(frames[step], project_to_grid(points, projections[step])).contiguous()  # (D·B, A, M, C)
+        lane = sample_features(frames[step], project_to_grid(points, projections[step]))  # (D·B, A, M, C)
+        if step == 0 and not torch.is_grad_enabled():
+            stack = lane.new_empty(S, *lane.shape)
+        # Laid out (A, M, C) once, as the offset head reads it flattened and BLFA by rows, not as grid_sample's
+        # (C, A, M). With autograd the lanes are stacked after the chain: writing into the stack in place would
+        # change what the offset head saved of the earlier steps for its backward pass.
+        lane = lane.contiguous() if stack is None else stack[step].copy_(lane)
         lanes.append(lane)
         sampled_at.append(points)
         if step == S - 1:
@@ -142,10 +148,11 @@ def refine(
     else:
         found = points.new_zeros(D, B, 0, *points.shape[1:])
         found_valid = valid.new_zeros(D, B, 0)
+    features = torch.stack(lanes) if stack is None else stack  # (S, D·B, A, M, C)
     results = []
     for d in range(D):
         mine = slice(d * B, (d + 1) * B)
-        results.append(Refined([t[mine] for t in lanes], [t[mine] for t in sampled_at], found[d], found_valid[d]))
+        results.append(Refined(features[:, mine], [t[mine] for t in sampled_at], found[d], found_valid[d]))
     return results
 
 
