@@ -12,6 +12,7 @@ from eval_helpers import NAMES, write_prediction_set
 from lanelab.experiment.eval_cli import run
 from lanelab.evaluation.config import ConfigError, load_eval_config
 from lanelab.json_files import LaneFileError
+from lanelab.metrics import openlane
 
 
 def options(data, out, *extra):
@@ -59,6 +60,15 @@ def test_the_error_budget_is_asked_for(tmp_path, capsys):
     assert budget["as predicted"]["f1"] == pytest.approx(plain["overall"]["f1"])
     assert budget["missed lanes"]["f1"] >= budget["as predicted"]["f1"]
     assert "Where the F1 goes" in capsys.readouterr().out and "| far positions |" in written[1].read_text()
+
+
+def test_the_error_budget_reads_each_file_once(tmp_path, monkeypatch):
+    data = write_prediction_set(tmp_path)
+    reads = []
+    read_prediction = openlane.read_prediction
+    monkeypatch.setattr(openlane, "read_prediction", lambda path: reads.append(path) or read_prediction(path))
+    run(load_eval_config(options(data, tmp_path / "out", "error_budget=true", "pictures.num_frames=0")))
+    assert len(reads) == len(set(reads)) == 3  # the metric and the budget score the same frames
 
 
 def test_a_malformed_prediction_is_named(tmp_path):

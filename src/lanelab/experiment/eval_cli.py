@@ -32,19 +32,23 @@ from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.finite import NonFiniteError
 from lanelab.json_files import LaneFileError
-from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frames
+from lanelab.metrics.error_budget import evaluate_with_budget
+from lanelab.metrics.openlane import FrameResult, OpenLaneConfig
 from lanelab.data.worker_errors import error_message
 from lanelab.store import ClipFileError, DataError, ManifestError
 
 register_schema(SCHEMA_NAME, EvalConfig)
 
 
-def evaluate_prediction_files(cfg: EvalConfig, config: OpenLaneConfig) -> list[tuple[str, FrameResult]]:
-    """(frame id, result) of every frame of the test list, scored from the files."""
-    results = evaluate_frames(cfg.gt, cfg.pred, cfg.test_list, config)
+def evaluate_prediction_files(
+    cfg: EvalConfig, config: OpenLaneConfig
+) -> tuple[list[tuple[str, FrameResult]], dict[str, dict[str, float | int]] | None]:
+    """(frame id, result) of every frame of the test list, scored from the files, and their
+    error budget if asked for (the files read once)."""
+    results, budget = evaluate_with_budget(cfg.gt, cfg.pred, cfg.test_list, config, cfg.error_budget)
     if not results:
         raise LaneFileError(cfg.test_list, "the test list names no frame")
-    return results
+    return results, budget
 
 
 def run(cfg: EvalConfig) -> list[Path]:
@@ -63,7 +67,6 @@ def run(cfg: EvalConfig) -> list[Path]:
         write_png,
     )
     from lanelab.evaluation.report import build_report, to_text, write_report
-    from lanelab.metrics.error_budget import error_budget_of_files
     from lanelab.metrics.scenarios import scenarios_of
     from lanelab.openlane.lists import read_scenario_lists
 
@@ -81,7 +84,7 @@ def run(cfg: EvalConfig) -> list[Path]:
         written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
         return [path for path in written if path.exists()]  # no pictures when num_frames=0
     config = OpenLaneConfig.long_range() if cfg.long_range else OpenLaneConfig()
-    results = evaluate_prediction_files(cfg, config)
+    results, budget = evaluate_prediction_files(cfg, config)
     scenarios = []
     if cfg.scenario_lists is not None:
         scenarios = scenarios_of(read_scenario_lists(cfg.scenario_lists), (name for name, _ in results))
@@ -90,7 +93,6 @@ def run(cfg: EvalConfig) -> list[Path]:
     if cfg.blind_prior and cfg.prior_store is not None:
         reference = blind_prior_reference([cfg.prior_store], cfg.gt, cfg.test_list, config, scenarios,
                                           error_budget=cfg.error_budget)  # fmt: skip
-    budget = error_budget_of_files(cfg.gt, cfg.pred, cfg.test_list, config) if cfg.error_budget else None
     report = build_report(results, config, scenarios, inputs, reference=reference, error_budget=budget)
     print(to_text(report))
     written = write_report(report, cfg.out)

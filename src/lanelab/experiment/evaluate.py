@@ -52,8 +52,7 @@ from lanelab.experiment.config import validate
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.lightning.pictures import log_pictures_to, takes_images
-from lanelab.metrics.error_budget import error_budget_of_files
-from lanelab.metrics.openlane import evaluate_frames
+from lanelab.metrics.error_budget import evaluate_with_budget
 from lanelab.metrics.scenarios import OPENLANE_TAG_GROUPS, SCENARIO_GROUPS, tag_scenarios
 from lanelab.openlane.file_paths import FILE_PATH_TAG, frame_id, store_file_path
 from lanelab.store import ClipStore
@@ -94,7 +93,9 @@ def evaluate(
     if not trainer.is_global_zero:
         return None
 
-    results = evaluate_frames(out / GROUND_TRUTH, out / PREDICTIONS, out / TEST_LIST, module.metric_config)
+    with_budget = options.get("error_budget", False)
+    results, budget = evaluate_with_budget(out / GROUND_TRUTH, out / PREDICTIONS, out / TEST_LIST,
+                                           module.metric_config, with_budget)  # fmt: skip
     store = ClipStore(datamodule.store)
     frames = store_frames(store, datamodule.splits["predict"])
     tags = {frame: frames[frame].tags for frame, _ in results}
@@ -104,11 +105,8 @@ def evaluate(
     if options.get("blind_prior", True):
         stores = [store for store in (options.get("prior_store"), datamodule.store) if store]
         reference = blind_prior_reference(stores, out / GROUND_TRUTH, out / TEST_LIST, module.metric_config, scenarios,
-                                          error_budget=options.get("error_budget", False))  # fmt: skip
+                                          error_budget=with_budget)  # fmt: skip
     inputs = {"store": str(datamodule.store), "out": str(out)}
-    budget = None
-    if options.get("error_budget", False):
-        budget = error_budget_of_files(out / GROUND_TRUTH, out / PREDICTIONS, out / TEST_LIST, module.metric_config)
     report = build_report(results, module.metric_config, scenarios, inputs, "model", reference, budget)
     print(to_text(report))
     written = write_report(report, out)

@@ -34,12 +34,15 @@ import numpy as np
 
 from lanelab.metrics.assignment import min_cost_assignment
 from lanelab.metrics.openlane import (
+    FrameResult,
     OpenLaneConfig,
     SampledLanes,
+    evaluate_frames,
     evaluate_sampled,
     paired_frames,
     sample_ground_truth,
     sample_predictions,
+    score_frames,
     summarize,
 )
 from lanelab.openlane.read import GroundTruthFrame, PredictionFrame
@@ -176,6 +179,21 @@ def error_budget_of_files(
     """:func:`error_budget` of OpenLane files, paired as the metric pairs them."""
     frames = ((gt, pred) for _, gt, pred in paired_frames(gt_dir, pred_dir, test_list))
     return error_budget(frames, config, max_distance)
+
+
+def evaluate_with_budget(
+    gt_dir: str | os.PathLike[str],
+    pred_dir: str | os.PathLike[str],
+    test_list: str | os.PathLike[str],
+    config: OpenLaneConfig = OpenLaneConfig(),
+    budget: bool = True,
+) -> tuple[list[tuple[str, FrameResult]], dict[str, dict[str, float | int]] | None]:
+    """:func:`~lanelab.metrics.openlane.evaluate_frames` of OpenLane files and, with ``budget``,
+    their :func:`error_budget` (else None). The files are read once and held for both."""
+    if not budget:
+        return evaluate_frames(gt_dir, pred_dir, test_list, config), None
+    frames = list(paired_frames(gt_dir, pred_dir, test_list))
+    return score_frames(frames, config), error_budget(((gt, pred) for _, gt, pred in frames), config)
 
 
 # --- the fixes: each maps a frame to predicted lanes (x, z, covered) at the y samples ----------

@@ -427,9 +427,16 @@ def evaluate_frames(
     the same place); a prediction naming no listed ground truth is an error. Raises
     OpenLaneFormatError for unreadable or malformed files.
     """
+    return score_frames(paired_frames(gt_dir, pred_dir, test_list), config)
+
+
+def score_frames(
+    frames: Iterable[tuple[str, GroundTruthFrame, PredictionFrame]], config: OpenLaneConfig = OpenLaneConfig()
+) -> list[tuple[str, FrameResult]]:
+    """(frame id, result) of (frame id, ground truth, prediction) frames, as :func:`paired_frames` gives them."""
     return [
         (rel, evaluate_frame(gt.lanes, gt.visibility, gt.categories, pred.lanes, pred.categories, config))
-        for rel, gt, pred in paired_frames(gt_dir, pred_dir, test_list)
+        for rel, gt, pred in frames
     ]
 
 
