@@ -17,8 +17,11 @@ from torch.utils._python_dispatch import TorchDispatchMode
 # Operators that return a tensor not declared a view, but launch no kernel.
 _NO_KERNEL = {
     torch.ops.aten._unsafe_view.default,
-    *(torch.ops.aten.empty.memory_format, torch.ops.aten.empty_strided.default, torch.ops.aten.empty_like.default),
-    *(torch.ops.aten.new_empty.default, torch.ops.aten.new_empty_strided.default),
+    torch.ops.aten.empty.memory_format,
+    torch.ops.aten.empty_strided.default,
+    torch.ops.aten.empty_like.default,
+    torch.ops.aten.new_empty.default,
+    torch.ops.aten.new_empty_strided.default,
 }
 # Operators that make a tensor from host data or read one back to the host.
 HOST_TRANSFERS = {torch.ops.aten.lift_fresh.default, torch.ops.aten._local_scalar_dense.default}

@@ -7,7 +7,8 @@ refined anchors A + S into the next frame it visits (eq. 3):
     A_next = T_{this -> next}(A + S),
 the temporal alignment of Table VII (``alignment=False``: T is the identity, the detected lane is
 carried in ego coordinates). The forward direction visits t-N, ..., t (eq. 5), the reverse one
-t, t-1, ..., t-N (eq. 6); each yields its lane-feature set, one (B, A, M, C) per frame, stacked (S, B, A, M, C).
+t, t-1, ..., t-N (eq. 6); each yields its lane-feature set, one (B, A, M, C) per frame, stacked in
+visiting order.
 
 The paper leaves open where the chains start and how padded frames are treated. Both start from
 the configured anchors in the first frame they visit (the reverse one: the current frame's
@@ -22,8 +23,8 @@ The two directions are independent chains of equal length, so :func:`refine` run
 lockstep as one batch (each with its own offset head). At batch 1 on a GPU a history frame costs
 its chain step's kernel launches more than their arithmetic, so everything a step needs that
 does not depend on the refined anchors is prepared once for all steps: a step is fifteen kernels.
-Without autograd (streaming) each step's lanes are written straight into the stack that BLFA reads
-as the history, so that the history is not copied again there.
+Without autograd (streaming) each step's lanes are written straight into the stack whose views BLFA
+reads as the history, so that BLFA does not stack the history again.
 """
 
 from __future__ import annotations
