@@ -408,18 +408,22 @@ def test_what_the_cuda_graphs_capture_touches_no_host_data(tiny_net):
     assert spy.host_transfers() == []
 
 
-def test_a_history_frame_adds_a_chain_step_of_few_kernels(tiny_net):
+def test_a_history_frame_adds_a_chain_step_of_few_kernels_and_no_copy_of_its_lanes(tiny_net):
     """At batch 1 on a GPU a history frame costs its BDTR step's kernel launches more than their
     arithmetic (benchmarks/RESULTS.md): what does not depend on the refined anchors is prepared
-    once for all steps, and a step stays near fifteen operators (stop 32's took 47.5)."""
-    counts = {}
+    once for all steps, and a step stays near fifteen operators (stop 32's took 47.5). What is
+    left is memory traffic: BLFA reads the history where BDTR wrote it, so a history frame writes
+    about seven times its lanes (stop 33's, which stacked the history again, eight)."""
+    kernels, written = {}, {}
     for n in (1, 3):
         net = build(tiny_net, num_history_frames=n)
         batch = window_batch(1, n + 1)
         with torch.no_grad(), OperatorLog() as log:
             net(batch)
-        counts[n] = log.kernels()
-    assert (counts[3] - counts[1]) / 2 <= 18, counts
+        kernels[n], written[n] = log.kernels(), log.bytes_written()
+    assert (kernels[3] - kernels[1]) / 2 <= 18, kernels
+    lanes = 2 * len(net.anchors) * tiny_net["num_points"] * tiny_net["embed_dim"] * 4  # a step's, both directions
+    assert (written[3] - written[1]) / 2 <= 7.5 * lanes, (written, lanes)
 
 
 # ------------------------------------------------------------------------------ gradients
