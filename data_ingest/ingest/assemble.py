@@ -11,8 +11,10 @@ For the images of a log, in stamp order (all lookups vectorised over the log):
 - tags: the last tags message stamped at most ``tolerances.tags_s`` after the image.
 
 An image that cannot be completed is dropped with a reason, as is one whose K, pose, extrinsic
-or matched label (lane points, visibility) holds NaN or inf; images without a label stay as
-unlabeled frames. A log whose TF tree never connects the world, ego and camera frames is
+or matched label (lane points, visibility) holds NaN or inf, whose K is not a pinhole matrix
+(:func:`~lanelab.geometry.intrinsics.pinhole_problem`), or whose ``openlane.file_path`` tag is
+absolute or leads out of its folder (it would decide where lanelab-eval writes the frame's
+files); images without a label stay as unlabeled frames. A log whose TF tree never connects the world, ego and camera frames is
 unusable (:class:`LogError`).
 """
 
@@ -31,8 +33,11 @@ from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.messages import LanesMsg
 from data_ingest.ingest.scan import ImageRef, LogContents
 from data_ingest.ingest.tf_tree import TfTree
+from lanelab.data_paths import path_problem
 from lanelab.geometry import T_BASE_LANE, T_LANE_BASE, invert
+from lanelab.geometry.intrinsics import pinhole_problem
 from lanelab.lanes import Lane
+from lanelab.openlane.file_paths import FILE_PATH_TAG
 from lanelab.store import FrameRecord
 
 _T_BASE_LANE = T_BASE_LANE.numpy()
@@ -78,6 +83,9 @@ def assemble(path: Path, contents: LogContents, cfg: LogReading) -> Assembled:
     keep.drop(np.isin(np.arange(len(images)), kept[non_finite]),
               f"label on {cfg.topics.lanes} has NaN or inf lane points or visibility")
     tags = _tags(contents, stamps[kept], cfg)
+    unsafe = _unsafe_file_paths(tags, stamps[kept], cfg.topics.tags, out.notes)
+    keep.drop(np.isin(np.arange(len(images)), kept[unsafe]),
+              f"tag {FILE_PATH_TAG} on {cfg.topics.tags} is absolute or leads out of its folder")
     for n, i in enumerate(kept):
         if not keep.mask[i]:
             continue
@@ -154,8 +162,9 @@ def _calibrations(contents: LogContents, images: Sequence[ImageRef], stamps: np.
     if tolerance is not None:
         keep.drop(np.abs(cal_stamps[index] - stamps) > tolerance * 1e9,
                   f"no calibration on {topic} within tolerances.calibration_s={tolerance}")
-    keep.drop(~(np.isfinite(K).all(axis=(1, 2)) & (K[:, 0, 0] > 0) & (K[:, 1, 1] > 0)),
-              "calibration K is not a pinhole matrix (zero or non-finite focal length)")
+    problems = np.array([pinhole_problem(c.K) for c in calibrations])[index]
+    for problem in sorted(set(problems) - {""}):
+        keep.drop(problems == problem, f"calibration K on {topic} is not a pinhole matrix: {problem}")
     sizes = np.array([(c.width, c.height) for c in calibrations], dtype=np.int64)[index]  # 0: not said
     actual = np.array([(image.width, image.height) for image in images], dtype=np.int64)
     keep.drop((sizes > 0).all(axis=1) & (sizes != actual).any(axis=1),
@@ -243,6 +252,21 @@ def _lanes_in_lane_frame(label: LanesMsg, T_lane_label: np.ndarray) -> list[Lane
                                                    np.split(label.visibility[order].astype(np.float32), split_at),
                                                    counts)
             if n]
+
+
+def _unsafe_file_paths(tags: list[dict[str, str]], stamps: np.ndarray, topic: str, notes: list[str]) -> np.ndarray:
+    """Frames (int array into ``tags``) whose :data:`FILE_PATH_TAG` would put their OpenLane files
+    outside the folder they are written to; a note per value names it and the frames' times."""
+    frames: dict[str, list[int]] = defaultdict(list)
+    for n, frame_tags in enumerate(tags):
+        value = frame_tags.get(FILE_PATH_TAG)
+        if value and path_problem(value):  # an empty one names no file (store_file_path's default)
+            frames[value].append(n)
+    for value, which in frames.items():
+        times = ", ".join(f"{stamps[n] / 1e9:.3f}" for n in which[:3]) + (", ..." if len(which) > 3 else "")
+        notes.append(f"{topic}: tag {FILE_PATH_TAG} {value!r} {path_problem(value)}: the {len(which)} frame(s) "
+                     f"it names (at {times} s) are refused, a path from a log never decides where files go")
+    return np.array(sorted(n for which in frames.values() for n in which), dtype=np.int64)
 
 
 def _tags(contents: LogContents, stamps: np.ndarray, cfg: LogReading) -> list[dict[str, str]]:

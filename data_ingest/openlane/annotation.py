@@ -42,7 +42,9 @@ from typing import Any
 
 import numpy as np
 
+from lanelab.data_paths import path_problem
 from lanelab.geometry.frames import T_BASE_LANE
+from lanelab.geometry.intrinsics import pinhole_problem
 from lanelab.json_files import LaneFileError, numeric_array, require, require_list
 from lanelab.lanes import NO_TRACK, Lane
 from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_camera
@@ -93,6 +95,12 @@ def vehicle_from_lane(extrinsic: np.ndarray) -> np.ndarray:
 def read_annotation(path: str | os.PathLike[str]) -> Annotation:
     """Read and validate one annotation file; LaneFileError names the file and the fault."""
     data, file_path, K, extrinsic = read_camera_header(path)
+    problem = pinhole_problem(K)
+    if problem:
+        raise LaneFileError(path, f"'intrinsic' is not a pinhole matrix: {problem}")
+    problem = path_problem(file_path)  # the image is read there, and predictions are written there
+    if problem:
+        raise LaneFileError(path, f"'file_path' {file_path!r} {problem}: refused")
     T_lane_cam = ground_from_camera(extrinsic)
     T_world_lane = None
     if "pose" in data:

@@ -168,3 +168,25 @@ def test_a_store_made_by_another_tool_is_refused(tiny, tmp_path):
     write_manifest(tmp_path / "store", Manifest(options={"made_by": "lanelab-ingest"}))
     with pytest.raises(ConfigError, match="did not make"):
         adapt(adapter_config(tiny, tmp_path / "store"))
+
+
+@pytest.mark.parametrize("key, value, problem", [
+    ("file_path", "../../../../tmp/x/rel.jpg", "'file_path' '../../../../tmp/x/rel.jpg' climbs out of its folder"),
+    ("file_path", "/tmp/x/abs.jpg", "'file_path' '/tmp/x/abs.jpg' is absolute"),
+    ("intrinsic", [[100.0, 0.0, 96.0], [0.0, 100.0, 64.0], [0.0, 0.0, 0.0]],
+     "'intrinsic' is not a pinhole matrix: last row is [0.0, 0.0, 0.0], not [0, 0, 1]"),
+    ("intrinsic", [[100.0, 0.0, 96.0], [5.0, 100.0, 64.0], [0.0, 0.0, 1.0]],
+     "'intrinsic' is not a pinhole matrix: K[1][0]=5, not 0"),
+    ("intrinsic", [[-100.0, 0.0, 96.0], [0.0, 100.0, 64.0], [0.0, 0.0, 1.0]],
+     "'intrinsic' is not a pinhole matrix: focal lengths fx=-100, fy=100 are not both positive"),
+])  # fmt: skip
+def test_a_file_path_leading_out_or_a_singular_intrinsic_fails_its_segment(tmp_path, key, value, problem):
+    """Issue 37, cases 1 and 4: what an annotation names is data; it is checked where it enters."""
+    data = write_tiny_openlane(tmp_path / "data")
+    bad = data.json_path("training", TRAIN_SEGMENT, 1)
+    annotation = json.loads(bad.read_text())
+    annotation[key] = value
+    bad.write_text(json.dumps(annotation))
+    results = {r.segment: r for r in adapt(adapter_config(data, tmp_path / "store"))}
+    assert results[TRAIN_SEGMENT].status == "failed" and results[VAL_SEGMENT].status == "written"
+    assert results[TRAIN_SEGMENT].error.startswith(f"{bad}: {problem}")

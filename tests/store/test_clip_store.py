@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -152,6 +153,12 @@ def test_manifest_entries_of_other_writers_may_hold_more_keys(tmp_path):
     ('{"format": "lanelab-clips", "version": 1, "sources": []}', "malformed manifest"),
     ('{"format": "lanelab-clips", "version": 1, "sources": [["log.mcap"]], "clips": []}', "malformed manifest"),
     ('{"format": "lanelab-clips", "version": 1, "sources": [], "clips": [{"clip_id": "c0"}]}', "malformed manifest"),
+    # A clip id names a file of the store (issue 37): data never leads out of it.
+    *((f'{{"format": "lanelab-clips", "version": 1, "sources": [], "clips": [{{"clip_id": "{clip_id}", '
+       f'"source": "s", "split": "test", "num_frames": 1, "first_timestamp_ns": 0, "last_timestamp_ns": 0}}]}}',
+       re.escape(f"clip id '{clip_id}' {problem}: refused"))
+      for clip_id, problem in [("../../x", "holds a path separator"), ("/tmp/x", "holds a path separator"),
+                               ("..", "climbs out of its folder ('..')")]),
 ])
 def test_bad_manifests_are_named(tmp_path, content, message):
     if content is not None:

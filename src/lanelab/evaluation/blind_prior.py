@@ -41,6 +41,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from lanelab.data_paths import path_inside
 from lanelab.evaluation.report import ERROR_BUDGET_KEY, Reference, build_reference
 from lanelab.metrics.error_budget import error_budget as budget_of
 from lanelab.metrics.openlane import FrameResult, OpenLaneConfig, evaluate_frame
@@ -241,7 +242,7 @@ def write_blind_prior_predictions(
     ``evaluate(gt_dir, out_dir, test_list)``); out_dir."""
     out = Path(out_dir)
     for rel, gt in _ground_truth(gt_dir, test_list):
-        write_json(out / rel, prior.prediction_json(gt.file_path))
+        write_json(path_inside(out, rel, f"{test_list}: line {rel!r}"), prior.prediction_json(gt.file_path))
     return out
 
 

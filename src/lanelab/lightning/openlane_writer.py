@@ -15,6 +15,10 @@ predictions with the points of visibility above the metric's threshold and each 
 ground truth as the store holds it (every point with its visibility, the camera's own K and
 extrinsic; :func:`~lanelab.openlane.lane_order.source_order`), not the model's resampled
 targets, so that an OpenLane store's files give back its source annotations point for point.
+
+A ``file_path`` comes from the store's data: one that would put a file outside its folder
+(absolute, or with ``..``) stops the run with a :class:`~lanelab.store.ClipFileError` naming
+the clip, the frame and the value; the files already written stay.
 """
 
 from __future__ import annotations
@@ -28,11 +32,12 @@ import lightning.pytorch as pl
 import torch.distributed as dist
 from lightning.pytorch.callbacks import BasePredictionWriter
 
+from lanelab.data_paths import UnsafePathError
 from lanelab.lightning.predictions import PredictionBatch
 from lanelab.openlane.lane_order import source_order
 from lanelab.openlane.lists import write_test_list
 from lanelab.openlane.write import write_ground_truth, write_prediction
-from lanelab.store import ClipStore
+from lanelab.store import ClipFileError, ClipStore
 
 PREDICTIONS, GROUND_TRUTH, TEST_LIST = "predictions", "ground_truth", "test_list.txt"
 
@@ -64,17 +69,26 @@ class OpenLaneWriter(BasePredictionWriter):
         batch_idx: int,
         dataloader_idx: int,
     ) -> None:
-        predictions = prediction.predictions
-        for i, file_path in enumerate(prediction.file_paths):
-            lanes = predictions.lanes(i, visible_only=False)  # write_prediction keeps the visible points
-            scores = [lane.score for lane in lanes]
-            write_prediction(self.output_dir / PREDICTIONS, file_path, lanes, predictions.threshold, scores)
-            if self.store is not None and prediction.labeled[i]:
-                index = int(prediction.frame_indices[i])
-                (frame,) = self.store.read_frames(prediction.clip_ids[i], index, index + 1)
-                lanes = source_order(frame.lanes, frame.tags)
-                write_ground_truth(self.output_dir / GROUND_TRUTH, file_path, lanes, frame.K, frame.T_lane_cam)
-                self._labeled.append(file_path)
+        for i in range(len(prediction.file_paths)):
+            try:
+                self._write_frame(prediction, i)
+            except UnsafePathError as err:
+                clip_id, index = prediction.clip_ids[i], int(prediction.frame_indices[i])
+                where = self.store.clip_path(clip_id) if self.store is not None else f"clip {clip_id}"
+                raise ClipFileError(f"{where}: frame {index}: {err}") from None
+
+    def _write_frame(self, prediction: PredictionBatch, i: int) -> None:
+        """The prediction file of frame i of the batch, and its ground truth if labeled."""
+        predictions, file_path = prediction.predictions, prediction.file_paths[i]
+        lanes = predictions.lanes(i, visible_only=False)  # write_prediction keeps the visible points
+        scores = [lane.score for lane in lanes]
+        write_prediction(self.output_dir / PREDICTIONS, file_path, lanes, predictions.threshold, scores)
+        if self.store is not None and prediction.labeled[i]:
+            index = int(prediction.frame_indices[i])
+            (frame,) = self.store.read_frames(prediction.clip_ids[i], index, index + 1)
+            lanes = source_order(frame.lanes, frame.tags)
+            write_ground_truth(self.output_dir / GROUND_TRUTH, file_path, lanes, frame.K, frame.T_lane_cam)
+            self._labeled.append(file_path)
 
     def on_predict_epoch_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
         if self.store is None:

@@ -9,7 +9,9 @@ Every OpenLane JSON file names its frame by ``file_path``, the frame's image pat
   ``file_path`` in its :data:`FILE_PATH_TAG` tag (:func:`file_path_of`), so that predictions
   written under it pair with the official files (and ``images=`` finds its image).
 
-:func:`store_file_path` picks between the two for any store's frame.
+:func:`store_file_path` picks between the two for any store's frame. A ``file_path`` is data:
+:func:`json_path` refuses one that is absolute or leads out of its folder
+(:func:`lanelab.data_paths.path_inside`), so no frame decides where a file is written.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ import os
 from collections.abc import Mapping
 from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
+
+from lanelab.data_paths import path_inside
 
 if TYPE_CHECKING:
     from lanelab.store import FrameRecord
@@ -53,5 +57,5 @@ def frame_id(file_path: str) -> str:
 
 def json_path(directory: str | os.PathLike[str], file_path: str) -> Path:
     """Where the JSON file (ground truth or prediction) of the frame with this ``file_path``
-    lies under directory."""
-    return Path(directory) / frame_id(file_path)
+    lies under directory. Raises UnsafePathError when that is not inside directory."""
+    return path_inside(directory, frame_id(file_path), f"file_path {file_path!r}")

@@ -33,7 +33,8 @@ from lanelab.store.schema import (
 
 
 class ClipFileError(ValueError):
-    """A clip file that cannot be read: damaged (a page checksum or its structure) or unreadable; names the file."""
+    """A clip file that cannot be read: damaged (a page checksum or its structure) or unreadable, or
+    whose data a writer refuses to follow (a frame's file_path leading out of its folder); names the file."""
 
 
 @contextlib.contextmanager

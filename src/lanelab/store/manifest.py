@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from lanelab.atomic_file import atomic_output
+from lanelab.data_paths import path_problem
 from lanelab.store.schema import FORMAT_NAME, FORMAT_VERSION, manifest_path
 
 
@@ -73,13 +74,27 @@ def read_manifest(store_dir: str | Path) -> Manifest:
         raise ManifestError(f"{path}: format version {data.get('version')!r} is not supported "
                             f"(this lanelab reads version {FORMAT_VERSION})")
     try:
-        return Manifest(
+        manifest = Manifest(
             sources=[_entry(SourceEntry, entry) for entry in data["sources"]],
             clips=[_entry(ClipEntry, entry) for entry in data["clips"]],
             options=dict(data.get("options", {})),
         )
     except (KeyError, TypeError) as err:
         raise ManifestError(f"{path}: malformed manifest: {err}") from None
+    for clip in manifest.clips:  # a clip id names a file of the store: data must not lead out of it
+        problem = clip_id_problem(clip.clip_id)
+        if problem:
+            raise ManifestError(f"{path}: clip id {clip.clip_id!r} {problem}: refused")
+    return manifest
+
+
+def clip_id_problem(clip_id: object) -> str:
+    """What makes ``clip_id`` unfit to name a clip file in ``clips/``: "" if nothing."""
+    if not isinstance(clip_id, str):
+        return "is not a string"
+    if "/" in clip_id or "\\" in clip_id:
+        return "holds a path separator"
+    return path_problem(clip_id)
 
 
 def _entry(kind: type, entry: dict[str, Any]) -> Any:
