@@ -26,7 +26,13 @@ from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 from data_ingest.contract import CALIBRATION, IMAGE, JSON_ONLY, LANES2D, OCCLUDERS, TAGS, TRANSFORMS, TYPES
 from data_ingest.ingest.errors import LogError
 from data_ingest.ingest.mcap_reader import RawMessage
-from lanelab.store.image_codec import COMPRESSED_ENCODINGS, RAW_CHANNELS, compressed_format, compressed_size
+from lanelab.store.image_codec import (
+    COMPRESSED_ENCODINGS,
+    RAW_CHANNELS,
+    compressed_format,
+    compressed_size,
+    decode_compressed,
+)
 
 NS = 1_000_000_000
 
@@ -248,12 +254,20 @@ def _xyzw(q: Any) -> tuple[float, float, float, float]:
 # --- images ------------------------------------------------------------------------------------
 
 def _compressed(stamp: int, frame_id: str, fmt: str, data: bytes) -> ImageMsg:
-    """A compressed image; its true format comes from its magic bytes, the ``format`` string may be loose."""
+    """A compressed image; its true format comes from its magic bytes, the ``format`` string may be loose.
+
+    The image is decoded once here: bytes cut short or corrupt behind a valid header would
+    otherwise become a good frame and fail only in training, naming no clip.
+    """
     encoding = compressed_format(data)
     if encoding is None:
-        raise MessageError(f"unsupported image format {fmt!r} (supported: {', '.join(COMPRESSED_ENCODINGS)})")
+        if not any(name in str(fmt).lower() for name in ("jpeg", "jpg", "png")):
+            raise MessageError(f"unsupported image format {fmt!r} (supported: {', '.join(COMPRESSED_ENCODINGS)})")
+        raise MessageError(f"format {fmt!r}, but " + ("the bytes are neither JPEG nor PNG (no signature at their "
+                                                      "start: garbage data)" if data else "the message holds no bytes"))
     try:
         width, height = compressed_size(data, encoding)
+        decode_compressed(data, encoding, width, height)
     except ValueError as err:
         raise MessageError(f"garbled {encoding} image: {err}") from None
     return ImageMsg(stamp, frame_id, encoding, width, height, data)

@@ -6,7 +6,8 @@ Every segment folder of the split folders named in ``splits`` (OpenLane's ``trai
 ``validation`` -> the store's ``train`` and ``val`` by default) becomes a clip of that
 split, its frames in time order. Each frame gets
 
-- its image: the bytes of ``<images>/<file_path>`` as they are, size from the header;
+- its image: the bytes of ``<images>/<file_path>`` as they are, size from the header, decoded once
+  to check them (an image cut short or corrupt fails its segment);
 - K, T_lane_cam, lanes and T_world_lane from :func:`~data_ingest.openlane.annotation.read_annotation`
   (the lane frame of an OpenLane store is the evaluator's ground frame, see there). A
   segment whose files carry no ``pose`` (OpenLane before v1.2) gets the identity for every
@@ -57,7 +58,7 @@ from lanelab.store import (
     file_sha256,
     write_clip,
 )
-from lanelab.store.image_codec import compressed_format, compressed_size
+from lanelab.store.image_codec import compressed_format, compressed_size, decode_compressed
 
 MADE_BY = "lanelab-openlane"
 LANE_FRAME = "OpenLane evaluator's ground frame: x right, y forward, z up; origin below the camera"
@@ -151,7 +152,11 @@ def _frames(
         encoding = compressed_format(image)
         if encoding is None:
             raise LaneFileError(image_path, "not a JPEG or PNG image")
-        width, height = compressed_size(image, encoding)
+        try:
+            width, height = compressed_size(image, encoding)
+            decode_compressed(image, encoding, width, height)  # cut short or corrupt data never makes a frame
+        except ValueError as err:
+            raise LaneFileError(image_path, str(err)) from None
         yield FrameRecord(
             timestamp_ns=annotation.timestamp_ns,
             image=image,

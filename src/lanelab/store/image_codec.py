@@ -22,6 +22,8 @@ _JPEG_MAGIC = b"\xff\xd8"
 # JPEG start-of-frame markers (baseline, progressive, lossless, ...): they hold the size.
 # 0xC4 (Huffman tables), 0xC8 (reserved) and 0xCC (arithmetic coding) are not frames.
 _JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+# The end of an image: JPEG's EOI marker, PNG's IEND chunk (type and CRC), searched for in the last bytes.
+_JPEG_END, _PNG_END, _END_SEARCH = b"\xff\xd9", b"IEND\xaeB`\x82", 64
 # Markers without a length field: TEM, RST0-7, SOI, EOI.
 _JPEG_STANDALONE = frozenset([0x01, *range(0xD0, 0xDA)])
 
@@ -73,6 +75,24 @@ def compressed_size(data: bytes, encoding: str) -> tuple[int, int]:
     raise ValueError("JPEG data has no start-of-frame header")
 
 
+def decode_compressed(data: bytes, encoding: str, width: int, height: int) -> np.ndarray:
+    """JPEG or PNG bytes of a ``width`` x ``height`` image -> (H, W, 3) uint8 BGR.
+
+    Raises ValueError saying what is wrong with the bytes: cut short (a header that promises
+    more than the data holds) or corrupt, or an image of another size.
+    """
+    bgr = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)  # gray or 16-bit PNGs: 8-bit BGR
+    if bgr is None:
+        end = _JPEG_END if encoding == "jpeg" else _PNG_END
+        if end not in data[-_END_SEARCH:]:  # encoders may pad after the end marker, not much
+            raise ValueError(f"the bytes stop before the image's end ({encoding} data cut short)")
+        raise ValueError(f"the bytes hold corrupt {encoding} data that cannot be decoded")
+    if bgr.shape[:2] != (height, width):
+        raise ValueError(f"{encoding} image decodes to {bgr.shape[1]}x{bgr.shape[0]}, its header or frame says "
+                         f"{width}x{height}")
+    return bgr
+
+
 def decode_image(frame: EncodedImage) -> np.ndarray:
     """A stored image -> (H, W, 3) uint8 RGB, whatever its ``image_encoding``.
 
@@ -80,14 +100,9 @@ def decode_image(frame: EncodedImage) -> np.ndarray:
     ``height`` x ``width`` image.
     """
     encoding, width, height = frame.image_encoding, frame.width, frame.height
-    data = np.frombuffer(frame.image, dtype=np.uint8)
     if encoding in COMPRESSED_ENCODINGS:
-        bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)  # gray or 16-bit PNGs come back as 8-bit BGR
-        if bgr is None:
-            raise ValueError(f"cannot decode the {encoding} image ({len(data)} bytes)")
-        if bgr.shape[:2] != (height, width):
-            raise ValueError(f"{encoding} image is {bgr.shape[1]}x{bgr.shape[0]}, the frame says {width}x{height}")
-        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+        return cv2.cvtColor(decode_compressed(frame.image, encoding, width, height), cv2.COLOR_BGR2RGB)
+    data = np.frombuffer(frame.image, dtype=np.uint8)
     if encoding not in RAW_CHANNELS:
         raise ValueError(f"unknown image encoding {encoding!r}; known: {', '.join(IMAGE_ENCODINGS)}")
     channels = RAW_CHANNELS[encoding]
