@@ -14,8 +14,10 @@ An image that cannot be completed is dropped with a reason, as is one whose K, p
 or matched label (lane points, visibility) holds NaN or inf, whose K is not a pinhole matrix
 (:func:`~lanelab.geometry.intrinsics.pinhole_problem`), or whose ``openlane.file_path`` tag is
 absolute or leads out of its folder (it would decide where lanelab-eval writes the frame's
-files); images without a label stay as unlabeled frames. A log whose TF tree never connects the world, ego and camera frames is
-unusable (:class:`LogError`).
+files); images without a label stay as unlabeled frames. Poses are never interpolated across a
+gap in /tf longer than ``tolerances.max_tf_gap_s``, nor from /tf samples that a clock jumping back
+made ambiguous (:mod:`~data_ingest.ingest.tf_tree`): those images are dropped too. A log whose
+TF tree never connects the world, ego and camera frames is unusable (:class:`LogError`).
 """
 
 from __future__ import annotations
@@ -69,12 +71,13 @@ def assemble(path: Path, contents: LogContents, cfg: LogReading) -> Assembled:
     stamps = np.array([image.stamp_ns for image in images], dtype=np.int64)
     keep = _Keep(np.ones(len(images), dtype=bool), out.dropped)
     K = _calibrations(contents, images, stamps, cfg, keep)
-    T_world_base = _lookup(contents.tf, cfg.frames.world, cfg.frames.ego, stamps, keep, "ego pose")
+    T_world_base = _lookup(contents.tf, cfg.frames.world, cfg.frames.ego, stamps, keep, "ego pose", cfg)
     T_base_cam = np.empty((len(images), 4, 4))
     frame_ids = np.array([image.frame_id for image in images])
     for frame_id in np.unique(frame_ids):
         on = frame_ids == frame_id
-        T_base_cam[on] = _lookup(contents.tf, cfg.frames.ego, str(frame_id), stamps, keep, "camera extrinsic", on)[on]
+        T_base_cam[on] = _lookup(contents.tf, cfg.frames.ego, str(frame_id), stamps, keep, "camera extrinsic", cfg,
+                                 on)[on]
     T_world_lane = T_world_base @ _T_BASE_LANE
     T_lane_cam = _T_LANE_BASE @ T_base_cam
 
@@ -95,6 +98,7 @@ def assemble(path: Path, contents: LogContents, cfg: LogReading) -> Assembled:
             width=image.width, height=image.height, K=K[i], T_lane_cam=T_lane_cam[i],
             T_world_lane=T_world_lane[i], labeled=n in lanes, lanes=lanes.get(n, []), tags=tags[n])
         out.frames.append(PlannedFrame(record, image))
+    out.notes += contents.tf.problems()
     if contents.tf.conflicts:
         out.notes.append("TF frames with two parents (the first kept): " + ", ".join(
             f"{child} under {parent} ({n} ignored)" for (child, parent), n in sorted(contents.tf.conflicts.items())))
@@ -172,21 +176,38 @@ def _calibrations(contents: LogContents, images: Sequence[ImageRef], stamps: np.
     return K
 
 
-def _lookup(tf: TfTree, target: str, source: str, stamps: np.ndarray, keep: _Keep, what: str,
+def _lookup(tf: TfTree, target: str, source: str, stamps: np.ndarray, keep: _Keep, what: str, cfg: LogReading,
             where: np.ndarray | None = None) -> np.ndarray:
     """T_target_source (N, 4, 4) at the ``stamps`` of images ``where`` (N,) bool (default all).
 
-    Drops the images where it is undefined (outside the TF samples) or not finite.
+    Drops the images where it is undefined (outside the TF samples, across a gap longer than
+    ``tolerances.max_tf_gap_s``, from ambiguous samples) or not finite, each with its reason.
     """
     where = np.ones(len(stamps), dtype=bool) if where is None else where
     T = np.full((len(stamps), 4, 4), np.nan)
-    valid = np.zeros(len(stamps), dtype=bool)
-    T[where], valid[where], gap = tf.lookup(target, source, stamps[where])
-    if gap is not None:
-        keep.drop(where & ~valid, f"no {what}: TF {tf.parent(gap)} -> {gap} has no samples around the image "
-                                  f"time (it covers {tf.time_range(gap)})")
+    T[where], _, faults = tf.lookup(target, source, stamps[where], _max_gap_ns(cfg))
+    for (child, kind), undefined in faults.items():
+        which = np.zeros(len(stamps), dtype=bool)
+        which[where] = undefined
+        keep.drop(which, f"no {what}: {_fault_reason(tf, child, kind, cfg)}")
     keep.drop(where & ~np.isfinite(T).all(axis=(1, 2)), f"{what} {target} <- {source} has NaN or inf")
     return T
+
+
+def _max_gap_ns(cfg: LogReading) -> int | None:
+    gap = cfg.tolerances.max_tf_gap_s
+    return None if gap is None else int(gap * 1e9)
+
+
+def _fault_reason(tf: TfTree, child: str, kind: str, cfg: LogReading) -> str:
+    """Why the TF edge parent <- ``child`` gives no transform (a kind of :meth:`TfTree.lookup`'s faults)."""
+    edge = f"TF {tf.parent(child)} -> {child}"
+    if kind == "outside":
+        return f"{edge} has no samples around the image time (it covers {tf.time_range(child)})"
+    if kind == "gap":
+        return (f"{edge} would be interpolated across a gap between samples longer than "
+                f"tolerances.max_tf_gap_s={cfg.tolerances.max_tf_gap_s}")
+    return f"{edge} is ambiguous at the image time (its stamps go back in time, or disagree at one stamp)"
 
 
 def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray, cfg: LogReading,
@@ -221,7 +242,8 @@ def _labels(contents: LogContents, stamps: np.ndarray, T_world_lane: np.ndarray,
             notes.append(f"{topic}: {len(pairs)} labels in frame {frame_id!r}, which the TF tree never connects "
                          f"to {world!r}: dropped")
             continue
-        T_world_label, valid, _ = contents.tf.lookup(world, frame_id, label_stamps[[k for _, k in pairs]])
+        T_world_label, valid, _ = contents.tf.lookup(world, frame_id, label_stamps[[k for _, k in pairs]],
+                                                     _max_gap_ns(cfg))
         valid &= np.isfinite(T_world_label).all(axis=(1, 2))
         if not valid.all():
             notes.append(f"{topic}: {int((~valid).sum())} labels in frame {frame_id!r} at times TF cannot place "

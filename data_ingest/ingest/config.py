@@ -25,6 +25,8 @@ class TolerancesConfig:
     label_s: float = MISSING
     calibration_s: Optional[float] = None
     tags_s: float = MISSING
+    max_tf_gap_s: Optional[float] = MISSING
+    tf_agreement: Optional[float] = MISSING
 
 
 @dataclass
@@ -108,7 +110,7 @@ def validate(cfg: IngestConfig) -> IngestConfig:
 
 def check_reading(cfg: LogReading) -> None:
     """Check the options of :class:`LogReading`; raise :class:`ConfigError` naming the first bad key."""
-    for key in ("label_s", "calibration_s", "tags_s"):
+    for key in ("label_s", "calibration_s", "tags_s", "max_tf_gap_s", "tf_agreement"):
         value = getattr(cfg.tolerances, key)
         if value is not None and value < 0:
             raise ConfigError(f"tolerances.{key}={value!r} must be >= 0")

@@ -73,7 +73,7 @@ def scan_log(path: Path, cfg: LogReading, spill: Spill, report: ReadReport,
              topics.tf_static: TRANSFORMS, topics.lanes: LANES, topics.tags: TAGS}
     if detections:
         roles[topics.lanes2d], roles[topics.occluders] = LANES2D, OCCLUDERS
-    contents, decoder = LogContents(), Decoder()
+    contents, decoder = LogContents(tf=TfTree(cfg.tolerances.tf_agreement)), Decoder()
     checked: set[int] = set()
     label_batch: list[bytes] = []
     # Labels are parsed on a second thread while the scan goes on: Arrow's JSON reader releases the GIL.
