@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import sys
+import tempfile
 import typing
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -154,6 +155,18 @@ def check_positive(key: str, value: float | None) -> None:
 def check_choice(key: str, value: str, choices: Sequence[str]) -> None:
     if value not in choices:
         raise ConfigError(f"{key}={value!r} is not one of {', '.join(choices)}")
+
+
+def check_writable_folder(key: str, value: str | os.PathLike[str]) -> None:
+    """``value`` must be a folder this process can write, made with its parents if missing.
+    Tried by writing a file there: a permission, a read-only file system, a file on the way."""
+    path = Path(value)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as err:
+        raise ConfigError(f"{key}={value}: cannot write there ({err.strerror or err})") from None
 
 
 def check_existing(key: str, value: str | None, kind: str) -> None:

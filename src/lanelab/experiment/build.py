@@ -21,6 +21,7 @@ from lightning.pytorch.loggers import Logger
 from omegaconf import DictConfig, OmegaConf
 
 from lanelab.config_checks import ConfigError
+from lanelab.experiment.checkpoints import load_checkpoint
 from lanelab.lightning.csv_logger import HistoryAtCheckpoint
 
 CONFIG_KEY = "lanelab_config"
@@ -84,14 +85,11 @@ def run_config(checkpoint: str | Path) -> dict[str, Any]:
 
 
 def read_checkpoint(checkpoint: str | Path) -> dict[str, Any]:
-    """A lanelab-train checkpoint's content (on the CPU), its run config (``CONFIG_KEY``) in
-    today's keys. Raises ConfigError naming the checkpoint when it cannot be read or holds no
-    run config."""
-    try:
-        content = torch.load(checkpoint, map_location="cpu", weights_only=False)
-    except Exception as err:  # torch raises many kinds for a bad file
-        raise ConfigError(f"checkpoint={checkpoint}: not a readable checkpoint ({err})") from None
-    if not isinstance(content, dict) or CONFIG_KEY not in content:
+    """A lanelab-train checkpoint's content (on the CPU, its tensors mapped from the file), its
+    run config (``CONFIG_KEY``) in today's keys. Raises ConfigError naming the checkpoint when it
+    cannot be read or holds no run config."""
+    content = load_checkpoint(checkpoint, "checkpoint")
+    if CONFIG_KEY not in content:
         raise ConfigError(f"checkpoint={checkpoint}: holds no lanelab run config (not written by lanelab-train)")
     content[CONFIG_KEY] = _up_to_date(content[CONFIG_KEY])
     return content

@@ -15,9 +15,15 @@ and a closing table (best checkpoint, best validation F1, test F1, steps, time);
 
 Exits with status 2 on a bad option, naming the key, and on a store that cannot feed the run
 (none there, an unreadable manifest, a split without clips, windows its clips cannot give),
-checked before the model is built; with status 1 on a damaged clip file and when NaN or inf stop
-the run (:class:`~lanelab.finite.NonFiniteError`: a store's frame, naming the clip and frame; a
-loss, naming the step and the batch's frames; a checkpoint's weights, naming the file).
+checked before the model is built; also on a ``ckpt_path`` that cannot serve the run (unreadable,
+no Lightning checkpoint, another model's weights, past ``max_epochs``:
+:mod:`lanelab.experiment.checkpoints`) and on a run folder in use by another lanelab-train or
+that cannot be written (:mod:`lanelab.experiment.run_folder`). With status 1 on a damaged or
+missing clip file and when NaN or inf stop the run (:class:`~lanelab.finite.NonFiniteError`: a
+store's frame, naming the clip and frame; a loss, naming the step and the batch's frames; a
+checkpoint's weights, naming the file). SIGTERM (a scheduler's stop) ends the run at the end of
+the step, with ``last.ckpt`` saved, one line saying where and how to resume, and status 143, as
+a process the signal ends: a scheduler must not count the run as finished.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import signal
 import sys
 import time
 from collections.abc import Iterator, Mapping
@@ -35,12 +42,14 @@ import hydra
 import lightning.pytorch as pl
 import torch
 from lightning.pytorch.loggers import WandbLogger
+from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig
 
 from lanelab.atomic_file import atomic_output
 from lanelab.config_checks import BAD_OPTION_STATUS, bad_options_exit, register_schema, run_hydra_tool
 from lanelab.experiment import BLIND_PRIOR_PREFIX, METRICS_JSON
-from lanelab.experiment.build import build_run
+from lanelab.experiment.build import Run, build_run
+from lanelab.experiment.checkpoints import check_resume
 from lanelab.experiment.config import SCHEMA_NAME, TrainConfig, validate
 from lanelab.finite import NonFiniteError
 from lanelab.lightning.console import ignore_known_warnings, route_lightning_logs
@@ -49,6 +58,11 @@ from lanelab.store import ClipFileError, DataError, ManifestError
 
 register_schema(SCHEMA_NAME, TrainConfig)
 log = logging.getLogger("lanelab.train")
+SIGTERM_STATUS = 128 + signal.SIGTERM  # 143, as a shell reports a process the signal ended
+
+
+class RunStopped(Exception):
+    """SIGTERM stopped the run; the message says at which step, where its state is and how to resume."""
 
 
 def train(cfg: DictConfig) -> dict[str, float]:
@@ -59,6 +73,20 @@ and testing (also written to ``metrics.json``)."""
     # Before the loggers start: W&B looks for the code's git repository from it.
     Path(cfg.paths.output_dir).mkdir(parents=True, exist_ok=True)
     run = build_run(cfg)
+    trainer, module, datamodule = run.trainer, run.module, run.datamodule
+    if cfg.ckpt_path is not None:
+        check_resume(trainer, module, cfg.ckpt_path, fitting=cfg.train)
+    with _stopped_by_sigterm(cfg, trainer):
+        metrics = _fit_test_evaluate(cfg, run)
+    if trainer.is_global_zero and metrics:  # an evaluation alone logs none
+        _write_metrics(Path(cfg.paths.output_dir) / METRICS_JSON, metrics)
+    if trainer.is_global_zero:
+        log.info("%s", closing_table(cfg, trainer, metrics, time.monotonic() - start))
+    return metrics
+
+
+def _fit_test_evaluate(cfg: DictConfig, run: Run) -> dict[str, float]:
+    """What the config asks of the built run; the last value of every metric logged."""
     trainer, module, datamodule = run.trainer, run.module, run.datamodule
     weights = cfg.ckpt_path
     metrics: dict[str, float] = {}
@@ -83,11 +111,20 @@ and testing (also written to ``metrics.json``)."""
     for logger in run.loggers:
         if isinstance(logger, WandbLogger):
             logger.experiment.finish()  # else the next run in this process (a sweep job) would reuse it
-    if trainer.is_global_zero and metrics:  # an evaluation alone logs none
-        _write_metrics(Path(cfg.paths.output_dir) / METRICS_JSON, metrics)
-    if trainer.is_global_zero:
-        log.info("%s", closing_table(cfg, trainer, metrics, time.monotonic() - start))
     return metrics
+
+
+@contextmanager
+def _stopped_by_sigterm(cfg: DictConfig, trainer: pl.Trainer) -> Iterator[None]:
+    """Lightning ends a run on SIGTERM after the step with a SystemExit of status 0, which a
+    scheduler would count as finished; :class:`RunStopped` instead, naming the saved state."""
+    try:
+        yield
+    except SIGTERMException:
+        last = getattr(trainer.checkpoint_callback, "last_model_path", "") or None
+        saved = f"the state is saved in {last}" if last else "no checkpoint was saved"
+        raise RunStopped(f"stopped by SIGTERM at step {trainer.global_step} (epoch {trainer.current_epoch}); {saved}; "
+                         f"resume with the same command and hydra.run.dir={cfg.paths.output_dir} ckpt_path=last") from None
 
 
 def closing_table(cfg: DictConfig, trainer: pl.Trainer, metrics: Mapping[str, float], seconds: float) -> str:
@@ -138,7 +175,8 @@ def _write_metrics(path: Path, metrics: dict[str, float]) -> None:
 @contextmanager
 def run_errors_exit(tool: str) -> Iterator[None]:
     """What stops a run, as one line on stderr and the documented exit status: 2 for a bad option
-    or a store that cannot feed the run, 1 for a damaged clip file or NaN / inf."""
+    or a store that cannot feed the run, 1 for a damaged or missing clip file or NaN / inf, 143
+    for SIGTERM."""
     try:
         with bad_options_exit(tool):
             yield
@@ -148,6 +186,9 @@ def run_errors_exit(tool: str) -> Iterator[None]:
     except (NonFiniteError, ClipFileError) as err:  # also from a loader worker, while training
         print(f"{tool}: {error_message(err)}", file=sys.stderr)
         sys.exit(1)
+    except RunStopped as err:
+        print(f"{tool}: {err}", file=sys.stderr)
+        sys.exit(SIGTERM_STATUS)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="train")
