@@ -23,3 +23,14 @@ def test_failure_keeps_previous_file_and_removes_temporary(tmp_path, error):
             raise error()
     assert target.read_bytes() == b"previous"
     assert not partial_path(target).exists()
+
+
+def test_two_processes_writing_one_file_use_two_temporaries(tmp_path):
+    """Issue 37, case 9: two lanelab-synth runs into one folder wrote into one temporary."""
+    import multiprocessing as mp
+
+    target = tmp_path / "log.mcap"
+    with mp.get_context("fork").Pool(1) as pool:
+        theirs = pool.apply(partial_path, (target,))
+    assert theirs != partial_path(target)
+    assert theirs.name.startswith(".log.mcap.") and theirs.name.endswith(".partial")

@@ -1,7 +1,10 @@
 """Write a set of synthetic drive logs: parallel workers, a progress bar, a summary, a preview.
 
 Each log is written atomically under ``<output_dir>/<name>.mcap``; logs already there
-are kept, so an interrupted run resumes where it stopped.
+are kept, so an interrupted run resumes where it stopped. A run holds the folder's lock
+(``<output_dir>/.synth.lock``, :mod:`lanelab.folder_lock`) from before it writes
+``synth_config.yaml`` to its end: a second run into the same folder stops at once, naming the
+process that writes it, so the folder never mixes two runs' logs and config.
 """
 
 from __future__ import annotations
@@ -21,8 +24,11 @@ from data_ingest.synth.drive import SyntheticDrive
 from data_ingest.synth.frame import SynthFrame
 from data_ingest.synth.mcap_writer import LogSummary, write_drive_log
 from data_ingest.synth.preview import PreviewRow, frames_to_keep, write_contact_sheet
-from lanelab.atomic_file import atomic_output
+from lanelab.atomic_file import PARTIAL_GLOB, atomic_output
+from lanelab.config_checks import ConfigError
+from lanelab.folder_lock import FolderBusy, lock_folder
 
+LOCK_NAME = ".synth.lock"
 PREVIEW_LOGS = 4
 PREVIEW_FRAMES = 3
 
@@ -128,9 +134,24 @@ def _print_summary(results: list[LogResult], seconds: float) -> None:
 
 
 def synthesize(cfg: SynthConfig) -> list[LogResult]:
-    """Write ``cfg.num_logs`` drive logs into ``cfg.output_dir`` (and the preview)."""
+    """Write ``cfg.num_logs`` drive logs into ``cfg.output_dir`` (and the preview).
+
+    Raises ConfigError when another run holds the folder or it cannot be written."""
     out = Path(cfg.output_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        lock = lock_folder(out, LOCK_NAME)
+    except FolderBusy as busy:
+        raise ConfigError(f"output_dir={out} is being written by another lanelab-synth ({busy.owner}); wait for "
+                          "it to finish or choose another output_dir") from None
+    except OSError as err:
+        raise ConfigError(f"output_dir={out}: cannot write there ({err.strerror or err})") from None
+    with lock:
+        for leftover in out.glob(PARTIAL_GLOB):  # a killed run's temporaries: no other run writes here
+            leftover.unlink(missing_ok=True)
+        return _synthesize(cfg, out)
+
+
+def _synthesize(cfg: SynthConfig, out: Path) -> list[LogResult]:
     with atomic_output(out / "synth_config.yaml") as tmp:
         tmp.write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
     todo = sum(1 for i in range(cfg.num_logs) if cfg.overwrite or not log_path(cfg, i).exists())

@@ -37,6 +37,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
+from lanelab.atomic_file import PARTIAL_GLOB
 from lanelab.store.integrity import clip_fault
 from lanelab.store.lock import lock_store
 from lanelab.store.manifest import ClipEntry, Manifest, ManifestError, SourceEntry, read_manifest, write_manifest
@@ -75,7 +76,7 @@ class StoreWriter:
         self._marks = tuple(marks)
         self._lock = lock_store(self.root)
         self.set_aside: Path | None = None  # where a garbled manifest went (overwrite)
-        for leftover in (self.root / CLIPS_DIR).glob(".*.partial"):
+        for leftover in (self.root / CLIPS_DIR).glob(PARTIAL_GLOB):
             leftover.unlink(missing_ok=True)
         try:
             self.manifest = self._open(dict(options))
