@@ -197,6 +197,8 @@ def ingest(cfg: IngestConfig) -> list[LogResult]:
                           f"{UNREADABLE_SUFFIX})") from None
     except (StoreRefused, StoreBusy) as err:
         raise ConfigError(str(err)) from None
+    except OSError as err:  # read-only, a file in the way, no space: before any log is read
+        raise ConfigError(f"output={cfg.output}: cannot write the store there ({err.strerror or err})") from None
     if writer.set_aside is not None:
         print(f"lanelab-ingest: the unreadable manifest is kept as {writer.set_aside}; every log is ingested anew")
     with writer:
@@ -208,6 +210,7 @@ def _ingest_logs(logs: list[Path], cfg: IngestConfig, writer: StoreWriter) -> li
     results: dict[str, LogResult] = {}
     todo: list[tuple[Path, str | None]] = []
     names: dict[str, Path] = {}
+    rewritten: dict[str, str] = {}  # log -> why its clips are re-written
     for path in logs:
         name = source_name(path)
         if name in names:
@@ -215,7 +218,11 @@ def _ingest_logs(logs: list[Path], cfg: IngestConfig, writer: StoreWriter) -> li
                                                                     "a store knows logs by name: rename one")
             continue
         names[name] = path
-        todo.append((path, writer.kept_sha256(str(path))))
+        known, faults = writer.examine(str(path))
+        todo.append((path, known))
+        if faults:  # re-ingested whatever its sha256: say why, in its summary line
+            rewritten[str(path)] = (f"re-written: the store's clip(s) of this log were missing or damaged "
+                                    f"({'; '.join(faults)})")
 
     total = sum(path.stat().st_size for path, _ in todo)
     recorded = 0
@@ -224,6 +231,8 @@ def _ingest_logs(logs: list[Path], cfg: IngestConfig, writer: StoreWriter) -> li
         try:
             for result in _run(todo, cfg, bar):
                 if result.status == INGESTED:
+                    if result.path in rewritten:
+                        result.warnings.insert(0, rewritten[result.path])
                     writer.commit(SourceEntry(result.path, result.sha256, result.num_frames), result.clips)
                     recorded += 1
                 elif result.status == FAILED:

@@ -134,6 +134,9 @@ def _check_required(path: Path, cfg: LogReading, report: ReadReport, detections:
             raise LogError(f"{path}: truncated or unreadable from byte {report.break_byte} of {report.size}, "
                            f"before any complete message ({report.break_reason}): nothing to ingest")
         raise LogError(f"{path}: the log has no channels and no messages")
+    if not sum(report.topics.values()) and report.break_byte is None:  # channels, but a recording of nothing
+        raise LogError(f"{path}: the log is empty: its {len(report.topics)} channel(s) "
+                       f"({', '.join(sorted(report.topics))}) hold no message")
     have = ", ".join(f"{topic} ({type_name(report.schemas.get(topic)) or 'no schema'}, {count} messages)"
                      for topic, count in sorted(report.topics.items()))
     if not missing:

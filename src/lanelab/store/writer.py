@@ -130,13 +130,24 @@ class StoreWriter:
         its clips may stay: every clip file of it is there as written (its sha256, when
         recorded), all in ``split`` when one is given, and the store is not being
         overwritten. None when the source must be written."""
-        name = self._source_name(path)
-        source = next((s for s in self.manifest.sources if self._source_name(s.path) == name), None)
-        if source is None or self._overwrite:
-            return None
+        return self.examine(path, split)[0]
+
+    def examine(self, path: str, split: str | None = None) -> tuple[str | None, list[str]]:
+        """:meth:`kept_sha256`, and what is wrong with the clip files of the store's version of
+        the source: one "<clip id> <fault>" per missing or damaged file (the files read once; none
+        looked at when overwriting)."""
+        source = self._stored(path)
+        if source is None or self._overwrite:  # overwritten whatever its clips hold
+            return None, []
         clips = [clip for clip in self.manifest.clips if clip.source == source.path]
-        whole = all(split in (None, clip.split) and clip_fault(self.root, clip) is None for clip in clips)
-        return source.sha256 if whole else None
+        faults = [f"{clip.clip_id} {fault}" for clip in clips if (fault := clip_fault(self.root, clip)) is not None]
+        whole = all(split in (None, clip.split) for clip in clips) and not faults
+        return (source.sha256 if whole else None), faults
+
+    def _stored(self, path: str) -> SourceEntry | None:
+        """The store's source of the same name as ``path``, if any."""
+        name = self._source_name(path)
+        return next((s for s in self.manifest.sources if self._source_name(s.path) == name), None)
 
     def commit(self, source: SourceEntry, clips: Sequence[ClipEntry], marks: Iterable[str] = ()) -> None:
         """Put ``source`` and its ``clips`` (their files written) in the manifest in place of the
