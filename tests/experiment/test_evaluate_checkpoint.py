@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 import torch
 from tiny_store import tiny_overrides
+from train_command import eval_command, read_only
+from train_command import run as run_command
 
 from lanelab.config_checks import ConfigError
 from lanelab.experiment.eval_cli import run
@@ -58,3 +60,14 @@ def test_bad_checkpoint_options_are_named(overrides: list[str], message: str, ti
     ckpt.touch()
     with pytest.raises(ConfigError, match=message):
         load_eval_config([o.format(ckpt=ckpt, store=tiny_store) for o in overrides])
+
+
+def test_an_out_folder_that_cannot_be_written_is_one_line(trained_checkpoint: Path, tiny_store: Path,
+                                                          tmp_path: Path) -> None:  # fmt: skip
+    locked = tmp_path / "read_only"
+    out = locked / "eval"
+    result = run_command(read_only(locked, eval_command(f"checkpoint={trained_checkpoint}", f"store={tiny_store}",
+                                                        f"out={out}")))  # fmt: skip
+    assert result.returncode == 2, result.stderr  # old code: 1 and a traceback, after predicting
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith(f"lanelab-eval: bad option: out={out}: cannot write there (")

@@ -72,7 +72,7 @@ def check_resume(trainer: pl.Trainer, module: pl.LightningModule, ckpt_path: str
     check_weights_fit(module, content["state_dict"], "ckpt_path", path, "this run's")
     epoch, max_epochs = content.get("epoch"), trainer.max_epochs
     if fitting and isinstance(epoch, int) and max_epochs not in (None, -1) and epoch > max_epochs:
-        raise ConfigError(f"ckpt_path={path}: the checkpoint has trained {epoch} epochs (step "
+        raise ConfigError(f"ckpt_path={path}: the checkpoint is at epoch {epoch} (step "
                           f"{content.get('global_step')}), past trainer.max_epochs={max_epochs}; give "
                           f"trainer.max_epochs={epoch} or more to train on, or train=false to test or evaluate it")
 

@@ -14,9 +14,11 @@ the store's tags). Beside the scores, the report shows the blind prior's, scored
 frames (:mod:`lanelab.evaluation.blind_prior`): from the train split of ``prior_store``, for
 a checkpoint by default the store it was trained on; for prediction files only when
 ``prior_store`` is given. Exits with status 1 on a malformed or missing input file, NaN or
-infinity in a prediction or ground-truth file included, on a damaged clip file and on a
+infinity in a prediction or ground-truth file included, on a damaged or missing clip file and on a
 checkpoint whose weights hold NaN or inf (the message names the file), and 2 on a bad option or
-a store that cannot give the split (none there, an unreadable manifest, a split without clips).
+a store that cannot give the split (none there, an unreadable manifest, a split without clips):
+a checkpoint that cannot be read or whose weights are another model's than its run config's, an
+``out`` that cannot be written (checked before anything is predicted or scored).
 """
 
 from __future__ import annotations
@@ -27,7 +29,14 @@ from pathlib import Path
 import hydra
 from omegaconf import DictConfig
 
-from lanelab.config_checks import BAD_OPTION_STATUS, options_or_exit, register_schema, run_hydra_tool
+from lanelab.config_checks import (
+    BAD_OPTION_STATUS,
+    bad_options_exit,
+    check_writable_folder,
+    options_or_exit,
+    register_schema,
+    run_hydra_tool,
+)
 from lanelab.evaluation.config import SCHEMA_NAME, EvalConfig, validate
 from lanelab.evaluation.report import PICTURES_PNG, REPORT_JSON, REPORT_MARKDOWN
 from lanelab.finite import NonFiniteError
@@ -83,6 +92,7 @@ def run(cfg: EvalConfig) -> list[Path]:
         evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, **options)
         written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
         return [path for path in written if path.exists()]  # no pictures when num_frames=0
+    check_writable_folder("out", cfg.out)  # before the scoring, which takes long on a large test list
     config = OpenLaneConfig.long_range() if cfg.long_range else OpenLaneConfig()
     results, budget = evaluate_prediction_files(cfg, config)
     scenarios = []
@@ -109,8 +119,9 @@ def run(cfg: EvalConfig) -> list[Path]:
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="eval")
 def _run(cfg: DictConfig) -> None:
     options = options_or_exit("lanelab-eval", cfg, EvalConfig, validate)
-    try:  # a ConfigError of run (a checkpoint that lanelab-train did not write) ends as a bad option (run_hydra_tool)
-        run(options)
+    try:
+        with bad_options_exit("lanelab-eval"):  # a ConfigError of run (a checkpoint, out) in the job: else Hydra logs a line first
+            run(options)
     except (ManifestError, DataError) as err:  # a store that cannot give the split, checked before the model is built
         print(f"lanelab-eval: {err}", file=sys.stderr)
         sys.exit(BAD_OPTION_STATUS)

@@ -35,6 +35,7 @@ import numpy as np
 from lightning.pytorch.loggers import Logger, WandbLogger
 from omegaconf import DictConfig, OmegaConf
 
+from lanelab.config_checks import check_writable_folder
 from lanelab.data.datamodule import ClipDataModule
 from lanelab.evaluation.blind_prior import blind_prior_reference
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
@@ -47,7 +48,8 @@ from lanelab.evaluation.report import (
     to_text,
     write_report,
 )
-from lanelab.experiment.build import build_run, run_config
+from lanelab.experiment.build import CONFIG_KEY, build_run, read_checkpoint
+from lanelab.experiment.checkpoints import check_weights_fit
 from lanelab.experiment.config import validate
 from lanelab.lightning import OpenLaneWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
@@ -136,7 +138,9 @@ def evaluate_checkpoint(
     """Score a lanelab-train checkpoint on one split of a clip store, on one device of the
     accelerator ("cpu", "gpu", "auto"): the predictions, report and pictures (num_pictures
     rows of picture_height pixels) of :func:`evaluate` under ``out``. Returns report.json's
-    content. Raises ConfigError naming the checkpoint when it holds no lanelab run config.
+    content. Raises ConfigError naming the checkpoint when it cannot be read, holds no lanelab run
+    config or weights of another model than its config's, and naming ``out`` when it cannot be
+    written (before anything is predicted).
 
     The blind prior (unless blind_prior is False) comes from the train split of prior_store,
     or where that is None from the store the checkpoint was trained on (its run config's
@@ -144,7 +148,9 @@ def evaluate_checkpoint(
     neither has one. error_budget: the report also shows where the F1 goes
     (:mod:`lanelab.metrics.error_budget`).
     """
-    cfg = OmegaConf.create(run_config(checkpoint))
+    content = read_checkpoint(checkpoint)
+    check_writable_folder("out", out)  # before the store is read and the model built
+    cfg = OmegaConf.create(content[CONFIG_KEY])
     trained_on = OmegaConf.select(cfg, "data.store")
     cfg.merge_with({
         "train": False, "test": False, "ckpt_path": str(checkpoint), "logger": None,
@@ -156,6 +162,8 @@ def evaluate_checkpoint(
         "trainer": {"accelerator": accelerator, "devices": 1, "num_nodes": 1, "strategy": "auto"},
     })  # fmt: skip
     run = build_run(validate(cfg))
+    check_weights_fit(run.module, content["state_dict"], "checkpoint", checkpoint, "its run config's")
+    del content  # the file's tensors, mapped: Lightning loads them again
     evaluate(run.trainer, run.module, run.datamodule, cfg.ckpt_path, cfg.evaluation)
     return json.loads((Path(out) / REPORT_JSON).read_text())
 

@@ -42,8 +42,10 @@ def _reading(path: Path) -> Iterator[None]:
     """Turn pyarrow's errors while reading ``path`` into a :class:`ClipFileError` naming it."""
     try:
         yield
-    except FileNotFoundError:
-        raise
+    except FileNotFoundError:  # the manifest lists it: a re-ingest writes it again (integrity.clip_fault)
+        raise ClipFileError(f"{path}: clip file missing (the store's manifest lists clip {path.stem!r}); re-ingest "
+                            f"the store (lanelab-ingest or lanelab-openlane with output={path.parent.parent}) to "
+                            "write it again") from None
     except (OSError, pa.ArrowException) as err:
         raise ClipFileError(f"{path}: damaged clip file ({type(err).__name__}: {err})") from None
 
@@ -190,7 +192,7 @@ def _lanes_from_column(column: pa.ListArray) -> list[list[Lane]]:
 
 def read_window(path: Path, start: int, stop: int) -> list[FrameRecord]:
     """Frames ``start`` to ``stop - 1`` of the clip file at ``path``; one file open, only the row groups needed."""
-    with open(path, "rb") as handle, _reading(path):
+    with _reading(path), open(path, "rb") as handle:
         parquet = pq.ParquetFile(handle, page_checksum_verification=True)
         ends = np.cumsum([parquet.metadata.row_group(i).num_rows for i in range(parquet.num_row_groups)])
         first = int(np.searchsorted(ends, start, side="right"))
