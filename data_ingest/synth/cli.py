@@ -4,7 +4,8 @@
 
 Options are Hydra overrides of ``conf/synth.yaml``; ``--preview`` is short for
 ``preview=true``. Logs already present are kept (an interrupted run resumes) unless
-``overwrite=true``. A bad option is named in one line before anything is written (exit status 2).
+``overwrite=true``. A bad option is named in one line before anything is written (exit status 2),
+as is an output folder that another run is writing or that cannot be written.
 """
 
 from __future__ import annotations
@@ -15,7 +16,14 @@ import hydra
 from omegaconf import DictConfig
 
 from data_ingest.synth.config import SCHEMA_NAME, SynthConfig, validate
-from lanelab.config_checks import bad_options_exit, register_schema, run_hydra_tool, typed
+from lanelab.config_checks import (
+    BAD_OPTION_STATUS,
+    ConfigError,
+    bad_options_exit,
+    register_schema,
+    run_hydra_tool,
+    typed,
+)
 
 register_schema(SCHEMA_NAME, SynthConfig)
 
@@ -26,7 +34,11 @@ def _run(cfg: DictConfig) -> None:
         synth_cfg = validate(typed(cfg, SynthConfig))
     from data_ingest.synth.synthesize import synthesize  # heavy imports only once the options are good
 
-    synthesize(synth_cfg)
+    try:
+        synthesize(synth_cfg)
+    except ConfigError as err:  # the folder is another run's, or cannot be written
+        print(f"lanelab-synth: {err}", file=sys.stderr)
+        sys.exit(BAD_OPTION_STATUS)
 
 
 def main() -> None:

@@ -4,6 +4,8 @@ the second stops at once, naming the first's pid, before it writes synth_config.
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -29,3 +31,14 @@ def test_a_second_run_into_a_folder_being_written_is_refused(tmp_path):
     (result,) = synthesize(cfg)  # once the other is done, the folder is free; leftovers go
     assert result.summary is not None and result.path.is_file()
     assert sorted(p.name for p in out.iterdir()) == [LOCK_NAME, "synth_config.yaml", "synth_s0_000.mcap"]
+
+
+def test_the_command_says_so_in_one_line(tmp_path):
+    out = tmp_path / "logs"
+    with lock_folder(out, LOCK_NAME):
+        result = subprocess.run([sys.executable, "-m", "data_ingest.synth.cli", f"output_dir={out}", *TINY],
+                                capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"lanelab-synth: output_dir={out} is being written by another lanelab-synth "
+                                    f"(pid {os.getpid()} on ")
+    assert len(result.stderr.strip().splitlines()) == 1
