@@ -9,6 +9,7 @@ work, naming the key, before anything is read or written.
 from __future__ import annotations
 
 import dataclasses
+import errno
 import os
 import sys
 import tempfile
@@ -158,12 +159,15 @@ def check_choice(key: str, value: str, choices: Sequence[str]) -> None:
 
 
 def check_writable_folder(key: str, value: str | os.PathLike[str]) -> None:
-    """``value`` must be a folder this process can write, made with its parents if missing.
-    Tried by writing a file there: a permission, a read-only file system, a file on the way."""
-    path = Path(value)
+    """``value`` must be a folder this process can make (if missing) and write: a file is written
+    and removed in it or in its nearest existing parent, which are left as they were. Catches a
+    permission, a read-only file system, a file on the way."""
+    path = Path(value).absolute()
+    base = next(folder for folder in (path, *path.parents) if folder.exists())
     try:
-        path.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=path):
+        if not base.is_dir():
+            raise NotADirectoryError(errno.ENOTDIR, f"{base} is a file")
+        with tempfile.TemporaryFile(dir=base):
             pass
     except OSError as err:
         raise ConfigError(f"{key}={value}: cannot write there ({err.strerror or err})") from None
