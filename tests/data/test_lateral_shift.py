@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from lanelab.data.lateral_shift import shift_images, shift_targets
+from lanelab.data.lateral_shift import LateralShift, shift_images, shift_targets
 from lanelab.geometry import project_lane_points
 
 H, W = 96, 128
@@ -76,3 +76,27 @@ def test_targets_move_and_lose_what_leaves_the_image():
     # A lane moved wholly out of view is dropped with its category and identity.
     far = shift_targets(targets, y, K, T_LANE_CAM, (H, W), -60.0)
     assert far["gt_track_id"].tolist() == [] and far["gt_x"].shape == (0, 31)
+
+
+def test_the_augmentation_moves_a_window_alike_and_draws_per_sample():
+    """One draw moves every frame's marking, the current lanes by -d and every pose by +d."""
+    images = np.concatenate([blob_at(pixel_of(1.75, 12.0))] * 2)
+    K2, T2 = np.stack([K, K]), np.stack([T_LANE_CAM, T_LANE_CAM])
+    poses = np.stack([np.eye(4), np.eye(4)])
+    poses[1, 1, 3] = 2.0  # the current frame 2 m further on
+    y = np.linspace(3.0, 63.0, 31).astype(np.float32)
+    targets = {"gt_x": np.full((1, 31), 1.75, np.float32), "gt_z": np.zeros((1, 31), np.float32),
+               "gt_vis": np.ones((1, 31), np.float32), "gt_category": np.array([2]), "gt_track_id": np.array([4])}  # fmt: skip
+    augment = LateralShift(max_shift=1.0, border=(0, 0, 0))
+    torch.manual_seed(0)
+    shifts = set()
+    for _ in range(3):
+        moved, moved_poses, moved_targets = augment(images, K2, T2, poses, targets, y)
+        shift = float(moved_poses[0, 0, 3])
+        shifts.add(round(shift, 6))
+        assert 0 < abs(shift) <= 1.0
+        np.testing.assert_allclose(moved_poses[:, :3, 3] - poses[:, :3, 3], [[shift, 0, 0]] * 2, atol=1e-12)
+        np.testing.assert_allclose(moved_targets["gt_x"], 1.75 - shift, atol=1e-6)
+        for frame in moved:
+            np.testing.assert_allclose(centroid(frame), pixel_of(1.75 - shift, 12.0), atol=0.15)
+    assert len(shifts) == 3

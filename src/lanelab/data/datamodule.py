@@ -24,6 +24,7 @@ import numpy as np
 from torch.utils.data import DataLoader, Sampler
 
 from lanelab.data.augment import PhotometricAugment
+from lanelab.data.lateral_shift import LateralShift
 from lanelab.data.collate import collate_samples
 from lanelab.data.dataset import ClipDataset
 from lanelab.data.frame_index import SampleKey
@@ -42,7 +43,8 @@ class ClipDataModule(pl.LightningDataModule):
     image_size: (H, W) of the model input; crop: (top, left, height, width) source pixels cut
     out before resizing, or None. num_frames: F per sample. y_grid: {start, stop, num} of the
     resampled lanes. max_lanes: lanes per sample after padding. mean / std: image
-    normalisation. augment: training-only photometric augmentation, or None. batch_size:
+    normalisation. augment: training-only photometric augmentation, or None. lateral_shift:
+    training-only lateral shift of the ego (lanelab.data.lateral_shift), or None. batch_size:
     samples (streams) per rank and step. Defaults live in conf/data/clips.yaml.
     """
 
@@ -59,6 +61,7 @@ class ClipDataModule(pl.LightningDataModule):
         mean: Sequence[float],
         std: Sequence[float],
         augment: PhotometricAugment | None,
+        lateral_shift: LateralShift | None,
         train_sampler: SamplerFactory,
         eval_sampler: SamplerFactory,
         batch_size: int,
@@ -73,7 +76,7 @@ class ClipDataModule(pl.LightningDataModule):
         self.targets = LaneTargets(np.linspace(y_grid["start"], y_grid["stop"], int(y_grid["num"])))
         self.max_lanes = max_lanes
         self.mean, self.std = tuple(mean), tuple(std)
-        self.augment = augment
+        self.augment, self.lateral_shift = augment, lateral_shift
         self.train_sampler = train_sampler
         self.eval_sampler = eval_sampler
         self.batch_size = batch_size
@@ -88,6 +91,7 @@ class ClipDataModule(pl.LightningDataModule):
                 self.store, self.splits[stage], num_frames=self.num_frames, resize=self.resize,
                 targets=self.targets, mean=self.mean, std=self.std,
                 augment=self.augment if stage == "train" else None,
+                lateral_shift=self.lateral_shift if stage == "train" else None,
             )
         return self._datasets[stage]
 

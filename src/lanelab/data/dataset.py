@@ -47,6 +47,7 @@ import torch
 from torch.utils.data import Dataset
 
 from lanelab.data.augment import PhotometricAugment
+from lanelab.data.lateral_shift import LateralShift
 from lanelab.data.frame_index import FrameIndex, SampleKey, consecutive_offsets
 from lanelab.data.mirror import mirror_categories, mirror_intrinsics, mirror_transforms
 from lanelab.data.targets import LaneTargets
@@ -77,7 +78,8 @@ class ClipDataset(Dataset):
 
     ``dataset[i]`` (an int) is the window of ``num_frames`` consecutive frames ending at frame
     i of :attr:`index` (reset at clip starts); samplers ask for other windows with a
-    :class:`SampleKey`. ``augment`` (training only) jitters all frames of a sample alike.
+    :class:`SampleKey`. ``augment`` (training only) jitters all frames of a sample alike;
+    ``lateral_shift`` (training only) sees each sample from an ego moved sideways.
     The store holds no open file: each read opens its clip file in whichever process (a
     DataLoader worker) reads, so nothing is shared across forks.
     """
@@ -93,6 +95,7 @@ class ClipDataset(Dataset):
         mean: Sequence[float],
         std: Sequence[float],
         augment: PhotometricAugment | None = None,
+        lateral_shift: LateralShift | None = None,
     ) -> None:
         self.store = ClipStore(store_dir)
         if split not in SPLITS:
@@ -110,6 +113,7 @@ class ClipDataset(Dataset):
         self.targets = targets
         self.normalise = Normalise(mean, std)
         self.augment = augment
+        self.lateral_shift = lateral_shift
 
     def __len__(self) -> int:
         return len(self.index)
@@ -138,6 +142,8 @@ class ClipDataset(Dataset):
             images, K = np.ascontiguousarray(images[:, :, ::-1]), mirror_intrinsics(K, images.shape[2])
             T_lane_cam, T_world_lane = mirror_transforms(T_lane_cam), mirror_transforms(T_world_lane)
             targets = mirror_targets(targets)
+        if self.lateral_shift is not None:
+            images, T_world_lane, targets = self.lateral_shift(images, K, T_lane_cam, T_world_lane, targets, self.targets.y)
         if self.augment is not None:
             images = self.augment(images)
         return {

@@ -11,11 +11,18 @@ outside the old image are filled with ``border``, and lane samples that leave th
 longer visible, as the ground truth marks samples outside the camera's view.
 
 benchmarks/shift_probe.py uses it to ask whether a trained detector reads where a lane lies
-across the road. (As a training augmentation it made the detectors read positions, less
-precisely than the blind prior places them: benchmarks/RESULTS.md, tenth round.)
+across the road. :class:`LateralShift` is the same as a training augmentation: synthetic egos
+(as real ones) drive centred in their lane, so without it every training lane lies where lanes
+usually lie, and a detector (or its lateral-offset map, models.lateral_offset) can fit the
+training roads by learning that template instead of reading the image. (Alone, with the query
+decoders, it made them read positions less precisely than the blind prior places them:
+benchmarks/RESULTS.md, tenth round; with the lateral-offset map, issue "Decoders that read the
+road", it is what makes the map read.)
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -77,3 +84,42 @@ def shift_targets(targets: dict[str, np.ndarray], y: np.ndarray, K: np.ndarray, 
     keep = visible.sum(-1) >= 2
     shifted = {**targets, "gt_x": x.astype(np.float32), "gt_vis": visible}
     return {name: value[keep] for name, value in shifted.items()}
+
+
+def shift_poses(T_world_lane: np.ndarray, shift: float) -> np.ndarray:
+    """Ego poses (F, 4, 4) of an ego moved ``shift`` metres to the right in each of its frames."""
+    moved = np.eye(4)
+    moved[0, 3] = shift
+    return T_world_lane @ moved
+
+
+@dataclass(frozen=True)
+class LateralShift:
+    """Training augmentation: each sample is seen from an ego moved sideways by d, uniform in
+    [-max_shift, max_shift] metres, drawn once per sample from torch's generator (seeded per
+    loader worker, as :class:`~lanelab.data.augment.PhotometricAugment`). All frames of a window
+    move alike (images, poses), so the window stays a consistent drive; the current frame's
+    lanes move by -d. New pixels get ``border`` (uint8 RGB; the normalisation's mean by default
+    in the data config)."""
+
+    max_shift: float
+    border: tuple[int, int, int]
+
+    def __call__(
+        self,
+        images: np.ndarray,
+        K: np.ndarray,
+        T_lane_cam: np.ndarray,
+        T_world_lane: np.ndarray,
+        targets: dict[str, np.ndarray],
+        y: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """images (F, H, W, 3) uint8 with K (F, 3, 3), T_lane_cam, T_world_lane (F, 4, 4); targets
+        of the current (last) frame at the grid y (S,). Returns the images, poses and targets
+        after the shift."""
+        shift = float((torch.rand(()) * 2 - 1) * self.max_shift)
+        if shift == 0.0:
+            return images, T_world_lane, targets
+        images = shift_images(images, K, T_lane_cam, shift, border=tuple(float(c) for c in self.border))
+        targets = shift_targets(targets, y, K[-1], T_lane_cam[-1], images.shape[1:3], shift)
+        return images, shift_poses(T_world_lane, shift), targets

@@ -31,6 +31,11 @@ in the deformable cross-attention that depend on the sampled content (dca_conten
 fourth, a lateral search after every layer that moves each control point across the road onto
 the marking it sees (lateral_search, models.lateral_search), is off in the configurations: it
 did not improve the near-range error on held-out drives.
+
+A fifth reads the road (issue "Decoders that read the road"): ``lateral_offset`` adds a dense
+lateral-offset map (models.lateral_offset) whose direct read moves each line's initial points
+onto the lane it sees, before the decoder starts. Off in the papers' configurations (null),
+on at the tiny size the demo trains (conf/model_size/tiny).
 """
 
 from __future__ import annotations
@@ -47,24 +52,29 @@ from lanelab.models.deformable_attention import DeformableCrossAttention
 from lanelab.models.fpn import FPN
 from lanelab.models.ground_encoding import GroundPositionalEncoding
 from lanelab.models.heads import LaneHead
+from lanelab.models.lateral_offset import LateralOffsetReader
 from lanelab.models.lateral_search import LateralSearch
 from lanelab.models.memory_queue import MemoryQueue, QueueState
 from lanelab.models.positional_encoding import PointPositionalEncoding
 from lanelab.models.query_init import LaneQueryGenerator
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
 
-# LATR's neck reads C3..C5; the query generator reads the finest FPN level (stride 8).
+# LATR's neck reads C3..C5; the query generator reads the finest FPN level (stride 8). A stride-4
+# lateral-offset map also reads C2.
 _BACKBONE_STAGES = (1, 2, 3)
+_BACKBONE_STAGES_FINE = (0, 1, 2, 3)
 
 
 class _Encoded(NamedTuple):
     """The memory-independent part of one frame: FPN levels [(B, C, H_l, W_l)], queries 0Q
-    (B, N, M, C), initial point logits (B, N, M, 3), instance-mask logits (B, N, H/8, W/8)."""
+    (B, N, M, C), initial point logits (B, N, M, 3), instance-mask logits (B, N, H/8, W/8),
+    the lateral-offset map (B, 2, h, w) or None."""
 
     features: list[Tensor]
     queries: Tensor
     logits: Tensor
     masks: Tensor
+    offsets: Tensor | None
 
 
 class SparseLaneSTP(nn.Module):
@@ -89,6 +99,8 @@ class SparseLaneSTP(nn.Module):
     [-anchor_span, anchor_span] (models.query_init); null: no anchors.
     lateral_search: {num_candidates, search_range (metres)} of a LateralSearch after every decoder
     layer, on the finest feature level; null: none.
+    lateral_offset: {stride (4 or 8), hidden, max_offset, read_range, num_reads, iterations} of a
+    LateralOffsetReader whose map moves the initial points onto the lanes it reads; null: none.
     """
 
     def __init__(
@@ -125,10 +137,20 @@ class SparseLaneSTP(nn.Module):
         anchor_span: float | None,
         dca_content_weights: bool,
         lateral_search: Mapping[str, float] | None,
+        lateral_offset: Mapping[str, Any] | None = None,
     ) -> None:
         super().__init__()
-        self.backbone = ResNet(backbone_depth, backbone_width, _BACKBONE_STAGES)
-        self.neck = FPN(self.backbone.out_channels, embed_dim, dca_levels)
+        reader = dict(lateral_offset) if lateral_offset is not None else None
+        stride = None if reader is None else reader.pop("stride")
+        if stride not in (None, 4, 8):
+            raise ValueError(f"lateral_offset.stride must be 4 or 8, got {stride}")
+        self.backbone = ResNet(backbone_depth, backbone_width, _BACKBONE_STAGES_FINE if stride == 4 else _BACKBONE_STAGES)
+        neck_channels = self.backbone.out_channels[-len(_BACKBONE_STAGES) :]
+        self.neck = FPN(neck_channels, embed_dim, dca_levels)
+        self.reader = None
+        if reader is not None:
+            fine_channels = self.backbone.out_channels[0] if stride == 4 else None
+            self.reader = LateralOffsetReader(embed_dim, fine_channels, **reader)
         anchor_logits = None
         if anchor_span is not None:
             if not 0 <= anchor_span < min(-x_range[0], x_range[1]):
@@ -209,7 +231,7 @@ class SparseLaneSTP(nn.Module):
                 )
         if not all_frames:
             return outputs[-1]
-        tensors = [key for key in outputs[-1] if key not in ("memory", "anchors")]
+        tensors = [key for key, value in outputs[-1].items() if key not in ("memory", "anchors") and value is not None]
         stacked = {key: torch.stack([out[key] for out in outputs], dim=_frame_axis(key)) for key in tensors}
         return {**stacked, "anchors": outputs[-1]["anchors"]}
 
@@ -228,8 +250,10 @@ class SparseLaneSTP(nn.Module):
             points      (L, B, N, M, 4)  control points (x, y, z, v) of every decoder layer,
                                          metres; [-1] is the prediction
             logits      (L, B, N, K + 1) class logits of every layer, background last
-            init_points (B, N, M, 4)     the query generator's initial control points 0P
+            init_points (B, N, M, 4)     the query generator's initial control points 0P (after
+                                         the lateral-offset read, with one)
             masks       (B, N, H/8, W/8) auxiliary instance-mask logits (stride of FPN level 0)
+            offsets     (B, 2, h, w)     the lateral-offset map (metres, confidence logit), or None
             anchors     (N,) the lines' lateral anchors (metres), or None without anchors
             memory      MemoryState | None, the propagated memory this frame attended to (what
                         the temporal regulariser, eq. 12-13, compares with); None when empty
@@ -276,13 +300,35 @@ class SparseLaneSTP(nn.Module):
         """The per-frame work, batched over frames: images (B, F, 3, H, W) with their K
         (B, F, 3, 3) and T_lane_cam (B, F, 4, 4) -> F encodings."""
         B, F = images.shape[:2]
-        features = self.neck(self.backbone(images.flatten(0, 1)))
+        K, T_lane_cam, image_size = K.flatten(0, 1), T_lane_cam.flatten(0, 1), tuple(images.shape[-2:])
+        stages = self.backbone(images.flatten(0, 1))
+        features = self.neck(stages[-len(_BACKBONE_STAGES) :])
         if self.ground_encoding is not None:  # before the query generator: its line embeddings pool positions too
-            features = self.ground_encoding(features, K.flatten(0, 1), T_lane_cam.flatten(0, 1), tuple(images.shape[-2:]))
+            features = self.ground_encoding(features, K, T_lane_cam, image_size)
         queries, logits, masks = self.query_generator(features[0])
+        offsets = None
+        if self.reader is not None:
+            offsets = self.reader(features[0], stages[0] if len(stages) > len(_BACKBONE_STAGES) else None)
+            logits = self._read_lines(offsets, logits, K, T_lane_cam, image_size)
         per_frame = [[level.unflatten(0, (B, F))[:, f] for level in features] for f in range(F)]
         queries, logits, masks = (t.unflatten(0, (B, F)) for t in (queries, logits, masks))
-        return [_Encoded(per_frame[f], queries[:, f], logits[:, f], masks[:, f]) for f in range(F)]
+        offsets = [None] * F if offsets is None else offsets.unflatten(0, (B, F)).unbind(1)
+        return [_Encoded(per_frame[f], queries[:, f], logits[:, f], masks[:, f], offsets[f]) for f in range(F)]
+
+    def _read_lines(
+        self, offsets: Tensor, logits: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tuple[int, int]
+    ) -> Tensor:
+        """Initial point logits (B, N, M, 3) moved sideways onto the lanes the lateral-offset map
+        (B, 2, h, w) shows (models.lateral_offset)."""
+        points = self.head.control_points(logits)
+        read_y = self.reader.read_y
+
+        def curve(shifts: Tensor) -> Tensor:
+            shifted = torch.cat([points[..., :1] + shifts[..., None], points[..., 1:]], -1)
+            return self.head.decode(shifted, read_y)[..., :3]
+
+        shifts = self.reader.line_shifts(offsets, curve, self.head.y, K, T_lane_cam, image_size)
+        return self.head.shift_x(logits, shifts)
 
     def _decode(
         self,
@@ -305,6 +351,7 @@ class SparseLaneSTP(nn.Module):
             "logits": logits,
             "init_points": self.head.control_points(encoded.logits),
             "masks": encoded.masks,
+            "offsets": encoded.offsets,
             "anchors": self.anchors(),
             "memory": state,
         }

@@ -6,7 +6,8 @@ On the frames that count (:func:`~lanelab.models.api.scored_frames`): the detect
 all decoder layers, spatial priors, the temporal regulariser of eq. 12-13 against the memory
 each frame attended to) plus the query generator's auxiliary instance-mask loss
 (:class:`~lanelab.models.losses.InstanceMaskLoss`), which pairs each line's mask with the lane
-the detection loss gave that line (as LATR trains both on one assignment).
+the detection loss gave that line (as LATR trains both on one assignment); with a lateral-offset
+map (models.lateral_offset), its dense loss (:class:`~lanelab.models.losses.LateralOffsetLoss`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from torch import Tensor, nn
 from lanelab.models.api import TARGET_KEYS, scored_frames
 from lanelab.models.losses.criterion import SparseLaneSTPLoss
 from lanelab.models.losses.instance_mask import InstanceMaskLoss
+from lanelab.models.losses.lateral_offset import LateralOffsetLoss
 from lanelab.models.memory_queue import MemoryState
 
 
@@ -40,21 +42,27 @@ def detection_inputs(outputs: Mapping[str, Any], frames: Tensor) -> dict[str, An
 
 
 class SparseLaneSTPCriterion(nn.Module):
-    """detection: the SparseLaneSTPLoss; instance_mask: the InstanceMaskLoss of the query generator."""
+    """detection: the SparseLaneSTPLoss; instance_mask: the InstanceMaskLoss of the query generator;
+    lateral_offset: the LateralOffsetLoss of the model's lateral-offset map, or None (the model has
+    none)."""
 
-    def __init__(self, detection: SparseLaneSTPLoss, instance_mask: InstanceMaskLoss) -> None:
+    def __init__(
+        self, detection: SparseLaneSTPLoss, instance_mask: InstanceMaskLoss, lateral_offset: LateralOffsetLoss | None = None
+    ) -> None:
         super().__init__()
-        self.detection, self.instance_mask = detection, instance_mask
+        self.detection, self.instance_mask, self.lateral_offset = detection, instance_mask, lateral_offset
 
     def forward(self, outputs: Mapping[str, Any], batch: Mapping[str, Any]) -> dict[str, Tensor]:
         """outputs: SparseLaneSTP's (points (L, B, N, M, 4), logits (L, B, N, K + 1), masks
         (B, N, h, w), anchors, memory); batch: the collated batch (lanelab.models.api).
         Returns "total", the detection terms of non-zero weight (summed over layers) and the
-        instance masks' "mask_dice" and "mask_bce"; only "total" where no frame counts."""
+        instance masks' "mask_dice" and "mask_bce", the lateral-offset map's "offset" and
+        "offset_confidence" (with one); only "total" where no frame counts."""
         scored = scored_frames(batch)
         if not bool(scored.any()):
             # Nothing to learn from; a zero that reaches the outputs keeps DDP ranks in step.
-            return {"total": sum(outputs[key].sum() * 0.0 for key in ("points", "logits", "masks"))}
+            used = [outputs[key] for key in ("points", "logits", "masks", "offsets") if outputs.get(key) is not None]
+            return {"total": sum(tensor.sum() * 0.0 for tensor in used)}
         targets = {key: batch[key][scored] for key in TARGET_KEYS}
         losses = self.detection(detection_inputs(outputs, scored), targets)
         camera = batch["K"][scored, -1], batch["T_lane_cam"][scored, -1]
@@ -63,5 +71,12 @@ class SparseLaneSTPCriterion(nn.Module):
             outputs["masks"][scored], targets, *camera, tuple(batch["images"].shape[-2:]), losses["matches"]
         )
         terms = {term: losses[term] for term, weight in self.detection.weights.items() if weight}
+        terms.update(mask_dice=masks["dice"], mask_bce=masks["bce"])
         total = losses["total"] + masks["total"]
-        return {"total": total, **terms, "mask_dice": masks["dice"], "mask_bce": masks["bce"]}
+        if self.lateral_offset is not None:
+            if outputs.get("offsets") is None:
+                raise ValueError("the criterion has a lateral_offset loss but the model makes no lateral-offset map")
+            read = self.lateral_offset(outputs["offsets"][scored], targets, *camera, tuple(batch["images"].shape[-2:]))
+            terms.update(offset=read["offset"], offset_confidence=read["confidence"])
+            total = total + read["total"]
+        return {"total": total, **terms}
