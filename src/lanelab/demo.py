@@ -7,7 +7,10 @@
 1. ``lanelab-synth`` writes the training drives and the held-out drives (fog, dense traffic);
 2. ``lanelab-ingest`` turns them into two clip stores: train / val, and the held-out test;
 3. every model of ``demo.models`` (the temporal SparseLaneSTP and its single-frame baseline)
-   is trained alike on the first (:func:`lanelab.experiment.train.train`),
+   is trained alike on the first (:func:`lanelab.experiment.train.train`), for the same number
+   of steps: ``trainer.max_steps``, or the steps the first model reached when the wall-clock
+   cap ``trainer.max_time`` stopped it sooner (the later models then run exactly as many,
+   without the cap);
 4. and evaluated on the second from its best checkpoint, as ``lanelab-eval checkpoint=...
    store=...`` does (:func:`lanelab.experiment.evaluate.evaluate_checkpoint`): report,
    prediction files and pictures per model;
@@ -17,7 +20,8 @@
    (:mod:`lanelab.evaluation.blind_prior`), scored on the same held-out ground truth. A model
    has learnt something from the camera only where it beats that row. Below it, where each
    model's F1 goes: the points it would gain with one kind of error fixed by the ground truth
-   (:mod:`lanelab.metrics.error_budget`).
+   (:mod:`lanelab.metrics.error_budget`). Above it, a "Note:" line whenever a model stopped
+   before ``trainer.max_steps``: the steps each got.
 
 Everything it runs is configured in ``conf/experiment/demo.yaml``; any key of it or of
 ``lanelab-train``'s config can be overridden. The drive-log tools run as their own commands
@@ -73,18 +77,19 @@ def demo(arguments: list[str]) -> None:
 
     train_store, test_store = prepare_stores(demo, out, start)
 
-    reports, steps = {}, {}
+    reports: dict[str, dict[str, Any]] = {}
+    steps: dict[str, int] = {}
     for model in demo.models:
         run = out / model
         _step(start, f"training {model}")
-        fit = train(load_train_config([*overrides, f"model={model}", f"data.store={train_store}",
-                                       f"paths.output_dir={run / 'train'}"]))  # fmt: skip
+        fit = train(load_train_config([*overrides, *same_steps(steps), f"model={model}",
+                                       f"data.store={train_store}", f"paths.output_dir={run / 'train'}"]))  # fmt: skip
         steps[model] = int(fit["train/steps"])
         _step(start, f"evaluating {model} on the held-out drives (lanelab-eval checkpoint=... store=...)")
         reports[model] = evaluate_checkpoint(best_checkpoint(run / "train"), test_store, run / "heldout",
                                              **heldout_options(base))  # fmt: skip
 
-    table = comparison(reports, steps, demo) + budget_comparison(reports)
+    table = short_training_note(steps, base.trainer) + comparison(reports, steps, demo) + budget_comparison(reports)
     with atomic_output(out / COMPARISON_MD) as tmp:
         tmp.write_text(f"# lanelab-demo: held-out drives\n\n{table}")
     print(f"\nHeld-out drives ({', '.join(demo.test_logs)}), {_minutes(start)} in all:\n\n{table}")
@@ -108,6 +113,33 @@ def prepare_stores(demo: DictConfig, out: Path, start: float) -> tuple[Path, Pat
         _tool("lanelab-ingest", f"input={out / 'logs' / 'train'}", f"output={train_store}", *demo.ingest_train)
     _tool("lanelab-ingest", f"input={out / 'logs' / 'test'}", f"output={test_store}", *demo.ingest_test)
     return train_store, test_store
+
+
+def same_steps(steps: dict[str, int]) -> list[str]:
+    """The trainer overrides of a model trained after those of ``steps`` (model -> steps
+    reached, in training order): exactly the first one's steps, without the wall-clock cap
+    (a cap hit again would cut this model at another step: the rows would not compare alike).
+    Nothing for the first model: it trains as configured."""
+    if not steps:
+        return []
+    return [f"trainer.max_steps={next(iter(steps.values()))}", "trainer.max_time=null"]
+
+
+def short_training_note(steps: dict[str, int], trainer: DictConfig) -> str:
+    """The line above the comparison when a model stopped before ``trainer.max_steps`` (its
+    wall-clock cap ``trainer.max_time`` reached on a slow or busy machine, or ``max_epochs``):
+    at which steps, and whether the models still trained alike; "" when every model ran them all."""
+    short = {model: n for model, n in steps.items() if n < trainer.max_steps}
+    if not short:
+        return ""
+    counts = set(steps.values())
+    alike = (f"every model trained the same {counts.pop()} steps, so the rows compare alike, but they are "
+             "not the full recipe's numbers" if len(counts) == 1 else
+             "the models trained different numbers of steps, so the rows do not compare alike")  # fmt: skip
+    return (f"Note: training stopped before trainer.max_steps={trainer.max_steps} (trainer.max_time="
+            f"{trainer.max_time} or trainer.max_epochs={trainer.max_epochs} came first): "
+            f"{', '.join(f'{model} at step {n}' for model, n in short.items())}; {alike}. On an idle machine, "
+            "or with a longer trainer.max_time, every model runs them all.\n\n")
 
 
 def comparison(reports: dict[str, dict[str, Any]], steps: dict[str, int], demo: DictConfig) -> str:
