@@ -32,8 +32,6 @@ the file, and the others go on.
 
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, Mapping, Sequence
@@ -42,6 +40,7 @@ import numpy as np
 
 from data_ingest.openlane.annotation import Annotation, read_annotation, timestamp_ns
 from data_ingest.openlane.config import OpenLaneAdapterConfig
+from data_ingest.source_files import FAILED, KEPT, WRITTEN, fingerprint, read_image_file
 from lanelab.config_checks import ConfigError
 from lanelab.json_files import LaneFileError, load_json_object
 from lanelab.openlane.file_paths import FILE_PATH_TAG
@@ -49,6 +48,7 @@ from lanelab.openlane.lane_order import far_to_near_tag
 from lanelab.openlane.lists import OPENLANE_SCENARIOS, read_scenario_lists
 from lanelab.store import (
     MADE_BY_OPTION,
+    WITHOUT_POSE,
     ClipEntry,
     FrameRecord,
     SourceEntry,
@@ -58,14 +58,11 @@ from lanelab.store import (
     file_sha256,
     write_clip,
 )
-from lanelab.store.image_codec import compressed_format, compressed_size, decode_compressed
 
 MADE_BY = "lanelab-openlane"
 LANE_FRAME = "OpenLane evaluator's ground frame: x right, y forward, z up; origin below the camera"
-WITHOUT_POSE = "clips_without_pose"  # the manifest's list of the clips whose frames have no pose
 # scene.json key -> frame tag (the tag keys of the scenario tables)
 SCENE_TAGS = {"scene": "environment", "weather": "weather", "time": "daytime"}
-WRITTEN, KEPT, FAILED = "written", "kept", "failed"
 
 
 @dataclass
@@ -126,7 +123,7 @@ def _adapt_segment(
         raise LaneFileError(segment_dir, "no annotation files (*.json) in this segment")
     tags = [_frame_tags(f"{segment}/{path.stem}", case_lists, scene) for path in paths]
     source = str(segment_dir.resolve())
-    sha256 = _fingerprint(paths, tags)
+    sha256 = fingerprint(paths, tags)
     if writer.kept_sha256(source, split) == sha256:
         return SegmentResult(segment, KEPT, len(paths), segment not in writer.manifest.options[WITHOUT_POSE])
 
@@ -145,18 +142,8 @@ def _frames(
     """The segment's frames (annotations and their tags), each image read only when its row
     group is written."""
     for annotation, frame_tags in zip(annotations, tags):
-        image_path = images / annotation.file_path
-        if not image_path.is_file():
-            raise LaneFileError(image_path, f"no such image (the file_path of the frame at {annotation.timestamp_ns} ns)")
-        image = image_path.read_bytes()
-        encoding = compressed_format(image)
-        if encoding is None:
-            raise LaneFileError(image_path, "not a JPEG or PNG image")
-        try:
-            width, height = compressed_size(image, encoding)
-            decode_compressed(image, encoding, width, height)  # cut short or corrupt data never makes a frame
-        except ValueError as err:
-            raise LaneFileError(image_path, str(err)) from None
+        frame = f"the file_path of the frame at {annotation.timestamp_ns} ns"
+        image, encoding, width, height = read_image_file(images / annotation.file_path, frame)
         yield FrameRecord(
             timestamp_ns=annotation.timestamp_ns,
             image=image,
@@ -187,16 +174,6 @@ def _read_scenes(path: str) -> dict[str, dict[str, str]]:
             raise LaneFileError(path, f"'{segment}' must map to an object of scene, weather and time")
         scenes[segment] = {tag: str(scene[key]) for key, tag in SCENE_TAGS.items() if key in scene}
     return scenes
-
-
-def _fingerprint(paths: Sequence[Path], tags: Sequence[dict[str, str]]) -> str:
-    """sha256 of a segment's annotation files (names and bytes) and of the tags given to its frames."""
-    digest = hashlib.sha256()
-    for path in paths:
-        digest.update(path.name.encode())
-        digest.update(path.read_bytes())
-    digest.update(json.dumps(tags, sort_keys=True).encode())
-    return digest.hexdigest()
 
 
 def _segment_of(source: str) -> str:

@@ -48,6 +48,7 @@ from lanelab.geometry.intrinsics import pinhole_problem
 from lanelab.json_files import LaneFileError, numeric_array, require, require_list
 from lanelab.lanes import NO_TRACK, Lane
 from lanelab.openlane.ground_frame import camera_lane_to_ground, ground_from_camera
+from lanelab.openlane.lane_order import near_to_far
 from lanelab.openlane.read import read_camera_header
 
 NS_PER_NAME_UNIT = 10  # file names count 10 ns units (microseconds followed by "00")
@@ -129,13 +130,13 @@ def _lane(lane: Any, T_lane_cam: np.ndarray, path: str | os.PathLike[str], where
     if len(visibility) != xyz.shape[1]:
         raise LaneFileError(path, f"{where}: {len(visibility)} visibility values for {xyz.shape[1]} points")
     points = camera_lane_to_ground(xyz, T_lane_cam)
-    order = np.argsort(points[:, 1], kind="stable")  # the store's lanes run near to far
+    order, far_to_near = near_to_far(points)  # the store's lanes run near to far
     return Lane(
         track_id=_integer(lane.get("track_id", NO_TRACK), f"{where}.track_id", path),
         category=_integer(require(lane, "category", path, where), f"{where}.category", path),
         points=points[order].astype(np.float32),
         visibility=visibility[order].astype(np.float32),
-    ), len(points) >= 2 and points[0, 1] > points[-1, 1]
+    ), far_to_near
 
 
 def _integer(value: Any, what: str, path: str | os.PathLike[str]) -> int:

@@ -39,22 +39,33 @@ class EvalConfig:
     blind_prior: bool = MISSING
     prior_store: Optional[str] = None
     error_budget: bool = MISSING
+    format: str = MISSING
+    without_ego_motion: Optional[str] = None
     pictures: PicturesConfig = field(default_factory=PicturesConfig)
 
 
 FILE_OPTIONS = ("gt", "pred", "test_list")  # the prediction-files mode
+FORMATS = ("openlane", "once")
+ONCE_FILE_OPTIONS = ("gt", "pred")  # ONCE-3DLanes scores every label under gt: no test list
+OPENLANE_ONLY = ("long_range", "scenario_lists", "images", "error_budget", "prior_store")  # not for format=once
+EGO_MOTION_POLICIES = ("refuse", "single_frame")  # lanelab.experiment.ego_motion
 CHECKPOINT_OPTIONS = ("checkpoint", "store")  # the checkpoint mode
 
 
 def validate(cfg: EvalConfig) -> EvalConfig:
     """Check every option; raise :class:`ConfigError` naming the first bad key."""
-    modes = "give gt, pred and test_list (prediction files) or checkpoint and store (a trained model)"
-    chosen = CHECKPOINT_OPTIONS if cfg.checkpoint is not None or cfg.store is not None else FILE_OPTIONS
-    other = FILE_OPTIONS if chosen is CHECKPOINT_OPTIONS else CHECKPOINT_OPTIONS
+    if cfg.format not in FORMATS:
+        raise ConfigError(f"format={cfg.format!r} is not one of {', '.join(FORMATS)}")
+    once = cfg.format == "once"
+    files = ONCE_FILE_OPTIONS if once else FILE_OPTIONS
+    modes = f"give {', '.join(files)} (prediction files) or checkpoint and store (a trained model)"
+    checkpoint_mode = cfg.checkpoint is not None or cfg.store is not None
+    chosen = CHECKPOINT_OPTIONS if checkpoint_mode else files
+    unused = FILE_OPTIONS if checkpoint_mode else CHECKPOINT_OPTIONS + tuple(k for k in FILE_OPTIONS if k not in files)
     for key in chosen:
         if getattr(cfg, key) is None:
             raise ConfigError(f"{key}: missing ({modes})")
-    for key in other:
+    for key in unused:
         if getattr(cfg, key) is not None:
             raise ConfigError(f"{key}: not used with {chosen[0]}=... ({modes})")
     if chosen is CHECKPOINT_OPTIONS:
@@ -62,6 +73,15 @@ def validate(cfg: EvalConfig) -> EvalConfig:
             if getattr(cfg, key):
                 raise ConfigError(f"{key}: applies to prediction files; a checkpoint is scored with its "
                                   "model's metric settings and the store's images and tags")  # fmt: skip
+    if once:
+        for key in OPENLANE_ONLY:
+            if getattr(cfg, key):
+                raise ConfigError(f"{key}: applies to the OpenLane metric, not to format=once")
+    if cfg.without_ego_motion is not None and cfg.without_ego_motion not in EGO_MOTION_POLICIES:
+        raise ConfigError(f"without_ego_motion={cfg.without_ego_motion!r} is not one of "
+                          f"{', '.join(EGO_MOTION_POLICIES)} (or null: the run config's)")
+    if cfg.without_ego_motion is not None and cfg.checkpoint is None:
+        raise ConfigError("without_ego_motion: applies to a checkpoint (how its model treats clips without ego motion)")
     check_existing("checkpoint", cfg.checkpoint, "file")
     check_existing("store", cfg.store, "folder")
     check_existing("gt", cfg.gt, "folder")

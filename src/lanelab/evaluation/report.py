@@ -176,6 +176,11 @@ def write_report(report: Report, out_dir: str | os.PathLike[str]) -> list[Path]:
         out / REPORT_JSON: json.dumps(to_json(report), indent=1, allow_nan=False) + "\n",
         out / REPORT_MARKDOWN: to_markdown(report),
     }
+    return write_texts(texts)
+
+
+def write_texts(texts: dict[Path, str]) -> list[Path]:
+    """Write each text to its path atomically (UTF-8); the paths."""
     for path, text in texts.items():
         with atomic_output(path) as tmp:
             tmp.write_text(text, encoding="utf-8")

@@ -22,6 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from lanelab.config_checks import ConfigError
 from lanelab.experiment.checkpoints import load_checkpoint
+from lanelab.experiment.ego_motion import apply_ego_motion_policy
 from lanelab.lightning.csv_logger import HistoryAtCheckpoint
 
 CONFIG_KEY = "lanelab_config"
@@ -44,10 +45,12 @@ def build_run(cfg: DictConfig) -> Run:
     The store is checked first, for the stages the run will go through (:func:`stages`),
     before the model and the Trainer are built: :class:`~lanelab.store.ManifestError` (no
     store or an unreadable one), :class:`~lanelab.store.DataError` (a split without clips, or
-    windows its clips cannot give)."""
+    windows its clips cannot give), ConfigError (clips without ego motion for a temporal model,
+    unless ``without_ego_motion=single_frame``: :mod:`lanelab.experiment.ego_motion`)."""
     pl.seed_everything(cfg.seed, workers=True, verbose=False)
     if cfg.cpu_threads is not None:
         torch.set_num_threads(cfg.cpu_threads)
+    apply_ego_motion_policy(cfg, stages(cfg))  # before the datamodule reads num_frames and the samplers
     datamodule = instantiate(cfg.data)
     datamodule.check(stages(cfg))
     module = instantiate(cfg.model)

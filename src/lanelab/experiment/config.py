@@ -19,6 +19,7 @@ from hydra import compose, initialize_config_module
 from omegaconf import MISSING, DictConfig
 
 from lanelab.config_checks import ConfigError, check_known_keys, register_schema
+from lanelab.evaluation.config import EGO_MOTION_POLICIES, FORMATS
 from lanelab.experiment.run_names import register_resolvers
 from lanelab.experiment.targets import TargetError, check_targets
 
@@ -48,6 +49,7 @@ class EvaluationConfig:
     blind_prior: bool = MISSING
     prior_store: str | None = None
     error_budget: bool = False  # a default: the run configs inside older checkpoints lack the key
+    format: str = "openlane"  # openlane | once; a default for the same reason
 
 
 @dataclass
@@ -74,6 +76,7 @@ class TrainConfig:
     train: bool = MISSING
     test: bool = MISSING
     ckpt_path: str | None = None
+    without_ego_motion: str = "refuse"  # a default: the run configs inside older checkpoints lack the key
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     # The groups: each is checked against what it builds (check_targets).
     data: Any = MISSING
@@ -101,6 +104,10 @@ def validate(cfg: DictConfig) -> DictConfig:
         raise ConfigError("train, test and evaluation.enabled are all false: nothing to do")
     if not cfg.train and cfg.ckpt_path is None:
         raise ConfigError("ckpt_path: needed when train=false (the weights to test or evaluate)")
+    if cfg.without_ego_motion not in EGO_MOTION_POLICIES:
+        raise ConfigError(f"without_ego_motion={cfg.without_ego_motion!r} is not one of {', '.join(EGO_MOTION_POLICIES)}")
+    if cfg.evaluation.format not in FORMATS:
+        raise ConfigError(f"evaluation.format={cfg.evaluation.format!r} is not one of {', '.join(FORMATS)}")
     if cfg.cpu_threads is not None and cfg.cpu_threads < 1:
         raise ConfigError(f"cpu_threads={cfg.cpu_threads} must be >= 1 (or null)")
     if cfg.evaluation.num_pictures < 0:

@@ -3,6 +3,7 @@ clip store, printed and written as the papers' tables, with pictures of a few fr
 
     lanelab-eval gt=DIR pred=DIR test_list=FILE out=DIR [long_range=true] [scenario_lists=DIR] [images=DIR] [prior_store=DIR]
     lanelab-eval checkpoint=FILE store=DIR [split=test] out=DIR [accelerator=cpu] [blind_prior=false] [prior_store=DIR]
+    lanelab-eval format=once gt=DIR pred=DIR out=DIR | format=once checkpoint=FILE store=DIR out=DIR: ONCE-3DLanes
     either with [error_budget=true]: a table of where the F1 goes (lanelab.metrics.error_budget)
 
 Options are Hydra overrides of ``conf/eval.yaml``. Writes ``<out>/report.json``,
@@ -60,6 +61,21 @@ def evaluate_prediction_files(
     return results, budget
 
 
+def evaluate_once_files(cfg: EvalConfig) -> list[Path]:
+    """Score ONCE-3DLanes prediction files against labels, print the table, write the report; its paths."""
+    from lanelab.evaluation.once_report import once_markdown, once_report, write_once_report
+    from lanelab.metrics.once import evaluate_once
+
+    rows = evaluate_once(cfg.gt, cfg.pred)
+    if not rows[0]["num_frames"]:
+        raise LaneFileError(cfg.gt, "no ONCE-3DLanes label (<sequence>/cam01/<stamp>.json) under this folder")
+    report = once_report(rows, {"gt": cfg.gt, "pred": cfg.pred})
+    print(once_markdown(report))
+    written = write_once_report(report, cfg.out)
+    print("wrote " + ", ".join(str(path) for path in written))
+    return written
+
+
 def run(cfg: EvalConfig) -> list[Path]:
     """Evaluate, print the tables, write the report and the pictures; the paths written
     (prediction files, or a checkpoint on a store).
@@ -88,11 +104,14 @@ def run(cfg: EvalConfig) -> list[Path]:
 
         options = {"split": cfg.split, "accelerator": cfg.accelerator, "num_pictures": cfg.pictures.num_frames,
                    "picture_height": cfg.pictures.height, "blind_prior": cfg.blind_prior,
-                   "prior_store": cfg.prior_store, "error_budget": cfg.error_budget}  # fmt: skip
+                   "prior_store": cfg.prior_store, "error_budget": cfg.error_budget, "format": cfg.format,
+                   "without_ego_motion": cfg.without_ego_motion}  # fmt: skip
         evaluate_checkpoint(cfg.checkpoint, cfg.store, cfg.out, **options)
         written = [Path(cfg.out) / name for name in (REPORT_JSON, REPORT_MARKDOWN, PICTURES_PNG)]
         return [path for path in written if path.exists()]  # no pictures when num_frames=0
     check_writable_folder("out", cfg.out)  # before the scoring, which takes long on a large test list
+    if cfg.format == "once":
+        return evaluate_once_files(cfg)
     config = OpenLaneConfig.long_range() if cfg.long_range else OpenLaneConfig()
     results, budget = evaluate_prediction_files(cfg, config)
     scenarios = []

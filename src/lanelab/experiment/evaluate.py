@@ -38,6 +38,7 @@ from omegaconf import DictConfig, OmegaConf
 from lanelab.config_checks import check_writable_folder
 from lanelab.data.datamodule import ClipDataModule
 from lanelab.evaluation.blind_prior import blind_prior_reference
+from lanelab.evaluation.once_report import once_markdown, once_report, write_once_report
 from lanelab.evaluation.pictures import PictureFrame, draw_pictures, pick_frames, read_openlane_frame, write_png
 from lanelab.evaluation.report import (
     PICTURES_PNG,
@@ -52,9 +53,11 @@ from lanelab.experiment.build import CONFIG_KEY, build_run, read_checkpoint
 from lanelab.experiment.checkpoints import check_weights_fit
 from lanelab.experiment.config import validate
 from lanelab.lightning import OpenLaneWriter
+from lanelab.lightning.once_writer import OnceWriter
 from lanelab.lightning.openlane_writer import GROUND_TRUTH, PREDICTIONS, TEST_LIST
 from lanelab.lightning.pictures import log_pictures_to, takes_images
 from lanelab.metrics.error_budget import evaluate_with_budget
+from lanelab.metrics.once import evaluate_once
 from lanelab.metrics.scenarios import OPENLANE_TAG_GROUPS, SCENARIO_GROUPS, tag_scenarios
 from lanelab.openlane.file_paths import FILE_PATH_TAG, frame_id, store_file_path
 from lanelab.store import ClipStore
@@ -86,6 +89,8 @@ def evaluate(
     there) of the datamodule's store. Returns the report on rank zero.
     """
     out = Path(options.out)
+    if options.get("format", "openlane") == "once":
+        return _evaluate_once(trainer, module, datamodule, ckpt_path, out)
     writer = OpenLaneWriter(out, ground_truth=datamodule.store)
     trainer.callbacks.append(writer)
     try:
@@ -134,6 +139,8 @@ def evaluate_checkpoint(
     blind_prior: bool,
     prior_store: str | Path | None,
     error_budget: bool = False,
+    format: str = "openlane",
+    without_ego_motion: str | None = None,
 ) -> dict:
     """Score a lanelab-train checkpoint on one split of a clip store, on one device of the
     accelerator ("cpu", "gpu", "auto"): the predictions, report and pictures (num_pictures
@@ -146,7 +153,9 @@ def evaluate_checkpoint(
     or where that is None from the store the checkpoint was trained on (its run config's
     ``data.store``), else from the evaluated store's own train split; the report says why when
     neither has one. error_budget: the report also shows where the F1 goes
-    (:mod:`lanelab.metrics.error_budget`).
+    (:mod:`lanelab.metrics.error_budget`). format: "openlane", or "once" for ONCE-3DLanes files
+    and metric (:func:`_evaluate_once`). without_ego_motion: refuse | single_frame for clips without
+    ego motion (:mod:`lanelab.experiment.ego_motion`), None: as the run config says.
     """
     content = read_checkpoint(checkpoint)
     check_writable_folder("out", out)  # before the store is read and the model built
@@ -157,15 +166,36 @@ def evaluate_checkpoint(
         "data": {"store": str(store), "splits": {"predict": split}},
         "paths": {"output_dir": str(out)},
         "evaluation": {"enabled": True, "out": str(out), "num_pictures": num_pictures, "picture_height": picture_height,
-                       "blind_prior": blind_prior, "error_budget": error_budget,
+                       "blind_prior": blind_prior, "error_budget": error_budget, "format": format,
                        "prior_store": None if prior_store is None and trained_on is None else str(prior_store or trained_on)},
         "trainer": {"accelerator": accelerator, "devices": 1, "num_nodes": 1, "strategy": "auto"},
     })  # fmt: skip
+    if without_ego_motion is not None:
+        cfg.without_ego_motion = without_ego_motion
     run = build_run(validate(cfg))
     check_weights_fit(run.module, content["state_dict"], "checkpoint", checkpoint, "its run config's")
     del content  # the file's tensors, mapped: Lightning loads them again
     evaluate(run.trainer, run.module, run.datamodule, cfg.ckpt_path, cfg.evaluation)
     return json.loads((Path(out) / REPORT_JSON).read_text())
+
+
+def _evaluate_once(
+    trainer: pl.Trainer, module: pl.LightningModule, datamodule: ClipDataModule, ckpt_path: str | None, out: Path
+) -> None:
+    """Predict into ONCE-3DLanes files (:class:`~lanelab.lightning.once_writer.OnceWriter`), score them
+    with the ONCE metric on rank zero, print the table and write ``report.json`` / ``report.md``. No
+    blind prior, scenarios or pictures: those belong to the OpenLane report."""
+    writer = OnceWriter(out, ground_truth=datamodule.store)
+    trainer.callbacks.append(writer)
+    try:
+        trainer.predict(module, datamodule=datamodule, ckpt_path=ckpt_path, return_predictions=False)
+    finally:
+        trainer.callbacks.remove(writer)
+    if trainer.is_global_zero:
+        report = once_report(evaluate_once(out / GROUND_TRUTH, out / PREDICTIONS), {"store": str(datamodule.store),
+                                                                                   "out": str(out)})
+        print(once_markdown(report))
+        print("wrote " + ", ".join(str(path) for path in write_once_report(report, out)))
 
 
 def store_frames(store: ClipStore, split: str) -> dict[str, StoreFrame]:

@@ -44,6 +44,7 @@ import numpy as np
 
 from lanelab.json_files import LaneFileError, load_json_object, numeric_array, require, require_list
 from lanelab.metrics.munkres import munkres_assignment
+from lanelab.once.labels import lane_arrays
 
 # Positions along a GT lane (fractions of its length) where the distance is measured.
 _ALONG = np.arange(0.05, 1, 0.1)
@@ -166,12 +167,7 @@ def evaluate_once(
 def read_once_ground_truth(path: str | os.PathLike[str]) -> list[np.ndarray]:
     """GT lanes (N_i, 3) of a ONCE-3DLanes label file: ``{"lanes": [[[x, y, z], ...], ...],
     "calibration": ...}``. Lanes of fewer than 2 points are left out, as officially."""
-    lanes = []
-    for i, lane in enumerate(require_list(load_json_object(path), "lanes", path)):
-        if isinstance(lane, list) and len(lane) < 2:
-            continue
-        lanes.append(numeric_array(lane, (None, 3), f"lanes[{i}]", path))
-    return lanes
+    return lane_arrays(load_json_object(path), path)
 
 
 def read_once_prediction(path: str | os.PathLike[str]) -> tuple[list[np.ndarray], list[float]]:

@@ -18,7 +18,9 @@ from lanelab.store.manifest import (
     ClipEntry,
     Manifest,
     ManifestError,
+    WITHOUT_POSE,
     SourceEntry,
+    clips_without_pose,
     read_manifest,
     write_manifest,
 )

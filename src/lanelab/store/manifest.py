@@ -16,6 +16,17 @@ from lanelab.data_paths import path_problem
 from lanelab.store.schema import FORMAT_NAME, FORMAT_VERSION, manifest_path
 
 
+# The manifest option that lists the clips without ego motion: their frames' T_world_lane is the
+# identity because the source gave no poses (lanelab-openlane before OpenLane v1.2, lanelab-once
+# without poses=), so frames of such a clip cannot be related to one another.
+WITHOUT_POSE = "clips_without_pose"
+
+
+def clips_without_pose(manifest: Manifest) -> set[str]:
+    """The ids of the manifest's clips without ego motion (:data:`WITHOUT_POSE`)."""
+    return set(manifest.options.get(WITHOUT_POSE, []))
+
+
 class ManifestError(ValueError):
     """A store's manifest is missing, garbled or of a format this lanelab cannot read; names the file."""
 
