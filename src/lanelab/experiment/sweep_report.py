@@ -29,7 +29,9 @@ CSV holds the jobs alone (the prior's unrounded numbers are in each job's ``metr
 Jobs without ``metrics.json`` (failed or still running), or whose ``metrics.json`` or
 ``overrides.yaml`` cannot be read, are named and left out; jobs that never validated (their
 ``trainer.max_steps`` ended them within the first epoch) are named, with how to get validation
-(``trainer.val_check_interval``), on stderr and in the report.
+(``trainer.val_check_interval``), on stderr and in the report. So is a sweep whose every job
+scored F1 0 (the smoke-test preset ``experiment=tiny``, or too few steps), with the recipe
+that learns (``experiment=demo`` on the same store).
 """
 
 from __future__ import annotations
@@ -114,6 +116,24 @@ def never_validated(jobs: list[Job]) -> str | None:
             "no val/ or test/ metric. Validation runs at the end of each epoch, so a job whose trainer.max_steps "
             "ends it within its first epoch has none: validate every N steps with trainer.val_check_interval=N "
             "(N <= max_steps), or test after fitting with test=true.")
+
+
+def nothing_learnt(jobs: list[Job]) -> str | None:
+    """A line for a sweep whose every job scored F1 0 (found no lane) in the metrics the report
+    shows: why (the smoke-test preset experiment=tiny, or too few steps) and what to run
+    instead; None when a job scored above 0 or none has an F1."""
+    scores = [float(score) for job in jobs if (score := job.metrics.get(_stage(jobs) + "f1")) is not None]
+    if not any(math.isfinite(score) for score in scores) or any(score > 0 for score in scores):
+        return None
+    steps = [float(job.metrics["train/steps"]) for job in jobs if job.metrics.get("train/steps") is not None]
+    if {job.overrides.get("experiment") for job in jobs} == {"tiny"}:
+        why = "experiment=tiny is a smoke test: it checks that a run trains, validates and reports, not that it learns"
+    else:
+        most = f" (at most {max(steps):.0f})" if steps else ""
+        why = f"the jobs trained too few steps to learn{most}, or their preset is a smoke test"
+    return (f"every job's F1 is 0: no job found a lane. {why}. For a sweep that learns, train the demo's recipe "
+            "on your store: lanelab-train --multirun experiment=demo data.store=STORE sweep=... "
+            "(1,500 steps a job; check that it beats the blind prior with evaluation.enabled=true).")
 
 
 def swept_keys(jobs: list[Job]) -> list[str]:
@@ -225,13 +245,13 @@ def write_report(multirun: Path, out: Path) -> list[Path]:
         print(f"lanelab-sweep-report: {folder} has no {METRICS_JSON} (failed or unfinished); left out", file=sys.stderr)
     if not jobs:
         raise FileNotFoundError(f"{multirun}: no finished lanelab-train job (<job>/.hydra and {METRICS_JSON})")
+    warnings = [warning for warning in (never_validated(jobs), nothing_learnt(jobs)) if warning is not None]
     keys = swept_keys(jobs) or ["job"]
     if keys == ["job"]:
         jobs = [Job(job.folder, {"job": job.folder.name}, job.metrics) for job in jobs]
     rows, columns = table_rows(jobs, keys)
     prior, note = blind_prior_row(jobs, keys, columns)
-    warning = never_validated(jobs)
-    if warning is not None:
+    for warning in warnings:
         print(f"lanelab-sweep-report: warning: {warning}", file=sys.stderr)
         note = f"{warning}\n\n{note}"
     out.mkdir(parents=True, exist_ok=True)
