@@ -18,6 +18,7 @@ TOOLS = {  # tool -> (module, an option of its own)
     "lanelab-ingest": ("data_ingest.ingest.cli", "split"),
     "lanelab-eval": ("lanelab.experiment.eval_cli", "test_list"),
     "lanelab-openlane": ("data_ingest.openlane.cli", "scene_tags"),
+    "lanelab-once": ("data_ingest.once.cli", "poses"),
     "lanelab-train": ("lanelab.experiment.train", "ckpt_path"),
 }
 

@@ -22,6 +22,8 @@ FORBIDDEN = {
                           "lanelab.metrics", "lanelab.evaluation", "data_ingest"),
     "src/lanelab/openlane": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
                              "lanelab.metrics", "lanelab.evaluation", "data_ingest"),
+    "src/lanelab/once": ("lanelab.data", "lanelab.models", "lanelab.lightning", "lanelab.experiment",
+                         "lanelab.metrics", "lanelab.evaluation", "data_ingest"),
     "src/lanelab/data": ("lanelab.models", "lanelab.lightning", "lanelab.experiment", "lanelab.metrics",
                          "lanelab.evaluation", "data_ingest"),
     "src/lanelab/models": ("lanelab.data", "lanelab.lightning", "lanelab.experiment", "lanelab.metrics",

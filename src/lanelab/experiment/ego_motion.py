@@ -54,6 +54,6 @@ def apply_ego_motion_policy(cfg: DictConfig, stages: list[str]) -> None:
     with open_dict(cfg):
         cfg.data.num_frames = 1
         if STREAM_SAMPLER in (cfg.sampler.train._target_, cfg.sampler.eval._target_):
-            cfg.sampler = window
+            cfg.sampler.train, cfg.sampler.eval = window.train, window.eval
     print(f"note: {len(without)} clips of data.store={cfg.data.store} have no ego motion ({named}): "
           "running single-frame (data.num_frames=1, window sampler)")
