@@ -18,10 +18,13 @@ import torch
 from data_ingest.ingest.frames import read_frames
 from data_ingest.ingest.mcap_reader import ReadReport
 from data_ingest.ingest.spill import Spill
+import lanelab.deploy.export as export_module
 from lanelab.deploy.config import load_export_config
 from lanelab.deploy.export import (
     METADATA_KEY,
+    Exported,
     check,
+    difference,
     export,
     export_checkpoint,
     input_names,
@@ -153,7 +156,63 @@ def test_a_failed_check_writes_nothing(checkpoint: Path, tmp_path: Path, capsys:
     assert run(load_export_config(options)) == 1
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "differs from step() by" in line and "nothing written" in line
+    assert "export again with check.tolerance=" in line and "or with check.frames=0 (no check)" in line
     assert list(tmp_path.iterdir()) == []
+
+
+def rounded_like_a_backend(monkeypatch: pytest.MonkeyPatch, lanes_off_m: float, logits_off: float) -> None:
+    """export() writes no file and the check runs the traced step itself, its lanes off by
+    ``lanes_off_m`` metres and its logits by ``logits_off`` of their scale (a backend's rounding,
+    without a minute of torch.onnx.export)."""
+    traced: list[torch.nn.Module] = []
+
+    def export_unwritten(step, fmt, out, example, metadata, check_with):  # noqa: ANN001 (export's signature)
+        traced.append(step)
+        check_with(Path(out))
+        return Exported(Path(out), fmt, None, metadata)
+
+    def run_step(path: Path, fmt: str):  # noqa: ANN202
+        def run(*inputs: torch.Tensor) -> tuple[torch.Tensor, ...]:
+            with torch.no_grad():
+                points, logits, lanes, *rest = traced[-1](*inputs)
+            return (points, logits + logits_off * logits.abs().max().clamp_min(1), lanes + lanes_off_m, *rest)
+
+        return run
+
+    monkeypatch.setattr(export_module, "export", export_unwritten)
+    monkeypatch.setattr(export_module, "runner", run_step)
+
+
+def test_the_default_check_passes_a_backends_rounding(checkpoint: Path, tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 38: a freshly trained checkpoint's ONNX file differed by 1.09e-4 and the default
+    tolerance (1e-4, absolute) refused it. Lane points are judged in metres and the rest relative
+    to its scale, and the default passes such rounding."""
+    rounded_like_a_backend(monkeypatch, lanes_off_m=1.09e-4, logits_off=5e-4)
+    tolerance = load_export_config([f"checkpoint={checkpoint}", f"out={tmp_path / 'model.onnx'}"]).check.tolerance
+    _, differences = export_checkpoint(load_trained(checkpoint, "cpu"), "onnx", tmp_path / "model.onnx", batch=1,
+                                       check_frames=3, tolerance=tolerance)  # fmt: skip
+    assert differences["lanes"] == pytest.approx(1.09e-4, rel=0.05)  # metres
+    assert differences["logits"] == pytest.approx(5e-4, rel=0.05)  # of their scale
+
+
+def test_a_refusal_names_the_ways_on(checkpoint: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                     capsys: pytest.CaptureFixture) -> None:
+    rounded_like_a_backend(monkeypatch, lanes_off_m=0.02, logits_off=0.0)  # two centimetres: not rounding
+    assert run(load_export_config([f"checkpoint={checkpoint}", "format=onnx", f"out={tmp_path / 'model.onnx'}"])) == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "differs from step() by 0.02 (m) in lanes over 20 frames, more than check.tolerance=0.001" in line
+    assert "export again with check.tolerance=0.1, or with format=torch" in line
+
+
+def test_lane_points_differ_in_metres_and_the_rest_relative_to_its_scale() -> None:
+    """A trained SparseLaneSTP's memory embeddings reach 4.3 and differ by 1.4e-4 through ONNX."""
+    want = torch.tensor([[4.34, -0.2], [0.5, 0.0]], dtype=torch.float64)
+    got = want + torch.tensor([[0.0, 1.4e-4], [0.0, 0.0]], dtype=torch.float64)
+    assert difference("state_out_embeddings", got, want) == pytest.approx(1.4e-4 / 4.34)
+    assert difference("lanes", got * 25, want * 25) == pytest.approx(25 * 1.4e-4)  # metres, however far
+    assert difference("logits", want + 1e-4, want) == pytest.approx(1e-4 / 4.34)
+    assert difference("logits", torch.full((2,), 1e-4), torch.zeros(2)) == pytest.approx(1e-4)  # a scale of at least 1
 
 
 @pytest.mark.parametrize("option, message", [

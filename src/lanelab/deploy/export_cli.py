@@ -1,12 +1,14 @@
 """``lanelab-export``: a trained SparseLaneSTP's or Bi²Lane's streaming step as an ONNX or
 torch.export file, its memory as explicit inputs and outputs (layout: :mod:`lanelab.models.explicit_state`).
 
-    lanelab-export checkpoint=FILE format=onnx|torch out=FILE [batch_size=1] [check.frames=20] [check.tolerance=1e-4]
+    lanelab-export checkpoint=FILE format=onnx|torch out=FILE [batch_size=1] [check.frames=20] [check.tolerance=1e-3]
 
 Options are Hydra overrides of ``conf/export.yaml``. The file is written only once it has run
 over a clip beside the eager model (:func:`lanelab.deploy.export.export_checkpoint`); prints
-the inputs, outputs, the ONNX opset and the check's largest differences. Exits with status 1
-when the checkpoint cannot be used (one line naming it) or the check fails, 2 on a bad option.
+the inputs, outputs, the ONNX opset and the check's largest differences (lane points in metres,
+other tensors relative to their scale: :func:`lanelab.deploy.export.difference`). Exits with
+status 1 when the checkpoint cannot be used (one line naming it) or the check fails (one line
+naming the ways on: a larger ``check.tolerance``, or ``format=torch``), 2 on a bad option.
 """
 
 from __future__ import annotations
@@ -46,8 +48,8 @@ def run(cfg: ExportConfig) -> int:
     for name, tensor in meta["state"].items():
         print(f"  state {name}: {tensor['dtype']} (B, {', '.join(map(str, tensor['shape']))})")
     if differences:
-        print(f"  check over {cfg.check.frames} frames against step(), largest |difference| (tolerance "
-              f"{cfg.check.tolerance:g}):")
+        print(f"  check over {cfg.check.frames} frames against step(), largest difference (lane points in metres, "
+              f"the others relative to their scale; tolerance {cfg.check.tolerance:g}):")
         for name, value in differences.items():
             print(f"    {name:<24}{value:.3g}")
     return 0
