@@ -102,10 +102,17 @@ def _up_to_date(config: dict[str, Any]) -> dict[str, Any]:
     """An older run config with the data keys of today: the Catmull-Rom targets
     (``data.control_points``) are gone, and the samplers' ``flip`` is given where older configs
     left it to a default (False). Bi²Lane's offset heads had the other heads' hidden width before
-    ``model.net.offset_hidden_dim`` was split off. The model of older runs,
-    ``lanelab.lightning.SparseLaneSTPModule``, still builds (lanelab.lightning.legacy)."""
+    ``model.net.offset_hidden_dim`` was split off. Keys added since, with the behaviour of runs
+    before them: no lateral-shift augmentation (``data.lateral_shift``), clips without ego motion
+    refused (``without_ego_motion``), OpenLane evaluation (``evaluation.format``). The model of
+    older runs, ``lanelab.lightning.SparseLaneSTPModule``, still builds (lanelab.lightning.legacy)."""
     data, sampler = config.get("data", {}), config.get("sampler", {})
     data.pop("control_points", None)
+    if "_target_" in data:
+        data.setdefault("lateral_shift", None)
+    config.setdefault("without_ego_motion", "refuse")
+    if isinstance(config.get("evaluation"), dict):
+        config["evaluation"].setdefault("format", "openlane")
     for node in (data.get("train_sampler"), data.get("eval_sampler"), sampler.get("train"), sampler.get("eval")):
         if isinstance(node, dict):
             node.setdefault("flip", False)
