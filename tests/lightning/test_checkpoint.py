@@ -76,7 +76,7 @@ def test_last_is_saved_after_every_validation_not_only_with_a_new_best(tmp_path:
     checkpoint = LaneCheckpoint(dirpath=tmp_path / "ckpt", monitor="probe", mode="min", save_top_k=1, save_last=True,
                                 enable_version_counter=False)  # fmt: skip
     probe = LastCheckpointSteps(tmp_path / "ckpt" / "last.ckpt")
-    trainer = pl.Trainer(max_epochs=3, limit_train_batches=2, limit_val_batches=1, logger=False,
+    trainer = pl.Trainer(max_epochs=3, limit_train_batches=2, limit_val_batches=1, logger=False, default_root_dir=tmp_path,
                          callbacks=[WorseEachValidation(), probe, checkpoint], **TRAINER)  # fmt: skip
     trainer.fit(module, dm)
     assert probe.steps == [2, 4]  # old code: [2, 2]
