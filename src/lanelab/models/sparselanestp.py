@@ -99,7 +99,7 @@ class SparseLaneSTP(nn.Module):
     [-anchor_span, anchor_span] (models.query_init); null: no anchors.
     lateral_search: {num_candidates, search_range (metres)} of a LateralSearch after every decoder
     layer, on the finest feature level; null: none.
-    lateral_offset: {stride (4 or 8), hidden, max_offset, read_range, num_reads, iterations} of a
+    lateral_offset: {stride (4 or 8), hidden, read_range, num_reads, iterations} of a
     LateralOffsetReader whose map moves the initial points onto the lanes it reads; null: none.
     """
 
@@ -253,7 +253,8 @@ class SparseLaneSTP(nn.Module):
             init_points (B, N, M, 4)     the query generator's initial control points 0P (after
                                          the lateral-offset read, with one)
             masks       (B, N, H/8, W/8) auxiliary instance-mask logits (stride of FPN level 0)
-            offsets     (B, 2, h, w)     the lateral-offset map (metres, confidence logit), or None
+            offsets     (B, 2, h, w)     the lateral-offset map (offset in image widths, confidence
+                                         logit; models.lateral_offset), or None
             anchors     (N,) the lines' lateral anchors (metres), or None without anchors
             memory      MemoryState | None, the propagated memory this frame attended to (what
                         the temporal regulariser, eq. 12-13, compares with); None when empty
