@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from data_ingest.once.adapter import adapt
 from data_ingest.once.config import CameraConfig, OnceAdapterConfig
 
 CALIBRATION = [[1000.0, 0.0, 960.0, 0.0], [0.0, 1000.0, 540.0, 0.0], [0.0, 0.0, 1.0, 0.0]]
@@ -70,3 +71,11 @@ def adapter_config(tiny: TinyOnce, output: Path, poses: bool = True) -> OnceAdap
     return OnceAdapterConfig(root=str(tiny.root), output=str(output), poses=str(tiny.poses) if poses else None,
                              splits={"train": "train", "val": "val", "test": "test"},
                              camera=CameraConfig(height=1.5, pitch_deg=0.3))  # fmt: skip
+
+
+def adapt_tiny_once(tiny: TinyOnce, output: Path, poses: bool = True) -> Path:
+    """The clip store lanelab-once writes from the tiny release (every sequence written); its path."""
+    results = adapt(adapter_config(tiny, output, poses))
+    sequences = sum(len(sequences) for sequences in SEQUENCES.values())
+    assert [r.status for r in results] == ["written"] * sequences, [r.error for r in results]
+    return output

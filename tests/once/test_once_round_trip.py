@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from once_helpers import CALIBRATION, SEQUENCES, WITH_POSES, adapter_config, write_tiny_once
+from once_helpers import CALIBRATION, SEQUENCES, WITH_POSES, adapt_tiny_once, adapter_config, write_tiny_once
 
 from data_ingest.once.adapter import adapt
 from lanelab.metrics.once import best, evaluate_once
@@ -29,10 +29,7 @@ def tiny(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def store(tiny, tmp_path_factory) -> Path:
-    output = tmp_path_factory.mktemp("store") / "store"
-    results = adapt(adapter_config(tiny, output))
-    assert [r.status for r in results] == ["written"] * 3, [r.error for r in results]
-    return output
+    return adapt_tiny_once(tiny, tmp_path_factory.mktemp("store") / "store")
 
 
 def latr_extrinsic() -> np.ndarray:
