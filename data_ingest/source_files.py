@@ -3,6 +3,7 @@ make a clip of each folder of label files and the images beside them.
 
 - :func:`read_image_file`: a frame's image as the store keeps it (the bytes as they are), checked
   by decoding it once, so that bytes cut short or corrupt never become a frame;
+- :func:`labeled_record`: a labeled frame's store record, with that image;
 - :func:`fingerprint`: the sha256 by which a re-run knows a folder's clip is unchanged.
 """
 
@@ -13,10 +14,12 @@ import json
 from pathlib import Path
 from typing import Any, Sequence
 
-from lanelab.json_files import LaneFileError
-from lanelab.store.image_codec import compressed_format, compressed_size, decode_compressed
+import numpy as np
 
-WRITTEN, KEPT, FAILED = "written", "kept", "failed"  # what became of a source folder
+from lanelab.json_files import LaneFileError
+from lanelab.lanes import Lane
+from lanelab.store import FrameRecord
+from lanelab.store.image_codec import compressed_format, compressed_size, decode_compressed
 
 
 def read_image_file(path: Path, frame: str) -> tuple[bytes, str, int, int]:
@@ -35,6 +38,23 @@ def read_image_file(path: Path, frame: str) -> tuple[bytes, str, int, int]:
     except ValueError as err:
         raise LaneFileError(path, str(err)) from None
     return image, encoding, width, height
+
+
+def labeled_record(
+    image_path: Path,
+    frame: str,
+    timestamp_ns: int,
+    K: np.ndarray,
+    T_lane_cam: np.ndarray,
+    T_world_lane: np.ndarray,
+    lanes: list[Lane],
+    tags: dict[str, str],
+) -> FrameRecord:
+    """The store record of a labeled frame, its image read from ``image_path`` (:func:`read_image_file`,
+    ``frame`` naming the frame in its error)."""
+    image, encoding, width, height = read_image_file(image_path, frame)
+    return FrameRecord(timestamp_ns=timestamp_ns, image=image, image_encoding=encoding, width=width, height=height,
+                       K=K, T_lane_cam=T_lane_cam, T_world_lane=T_world_lane, labeled=True, lanes=lanes, tags=tags)
 
 
 def fingerprint(paths: Sequence[Path], extra: Any) -> str:

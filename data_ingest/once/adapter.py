@@ -32,33 +32,23 @@ keeps its clip.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Iterator, Sequence
 
 import numpy as np
 
+from data_ingest.dataset_adapter import FAILED, KEPT, WRITTEN, adapt_folders, commit_clip, kept_with_pose
 from data_ingest.once.config import OnceAdapterConfig
 from data_ingest.once.labeled_frame import LabeledFrame, read_labeled_frame
 from data_ingest.once.poses import read_world_from_camera, sequence_file
-from data_ingest.source_files import FAILED, KEPT, WRITTEN, fingerprint, read_image_file
-from lanelab.config_checks import ConfigError
+from data_ingest.source_files import fingerprint, labeled_record
 from lanelab.data_paths import path_inside
 from lanelab.json_files import LaneFileError
 from lanelab.once.camera import fixed_T_lane_cam
 from lanelab.once.file_paths import CAMERA, LABEL_PATH_TAG, label_path
 from lanelab.openlane.lane_order import far_to_near_tag
-from lanelab.store import (
-    MADE_BY_OPTION,
-    WITHOUT_POSE,
-    ClipEntry,
-    FrameRecord,
-    SourceEntry,
-    StoreBusy,
-    StoreRefused,
-    StoreWriter,
-    file_sha256,
-    write_clip,
-)
+from lanelab.store import FrameRecord, StoreWriter, file_sha256
 from lanelab.store.schema import CLIPS_DIR, CLIP_SUFFIX
 
 MADE_BY = "lanelab-once"
@@ -77,6 +67,10 @@ class SequenceResult:
     empty: int = 0
     error: str = ""
 
+    @property
+    def name(self) -> str:  # the folder's name, as the summary prints it
+        return self.sequence
+
 
 def adapt(cfg: OnceAdapterConfig) -> list[SequenceResult]:
     """Make or update the store ``cfg.output``; one result per sequence found, in order.
@@ -85,30 +79,14 @@ def adapt(cfg: OnceAdapterConfig) -> list[SequenceResult]:
     or being written by another process; a bad sequence only fails itself.
     """
     camera = {"height": float(cfg.camera.height), "pitch_deg": float(cfg.camera.pitch_deg)}
-    options = {MADE_BY_OPTION: MADE_BY, "lane_frame": LANE_FRAME, "camera": camera}
-    try:
-        writer = StoreWriter(cfg.output, options, lambda source: Path(source).name, marks=[WITHOUT_POSE])
-    except (StoreRefused, StoreBusy) as err:
-        raise ConfigError(str(err)) from None
     T_lane_cam = fixed_T_lane_cam(camera["height"], camera["pitch_deg"])
-    results = []
-    with writer:
-        for folder, split in cfg.splits.items():
-            split_dir = Path(cfg.root) / folder
-            if not split_dir.is_dir():
-                print(f"lanelab-once: no split folder {split_dir}, skipped")
-                continue
-            for sequence_dir in sorted(path for path in split_dir.iterdir() if path.is_dir()):
-                try:
-                    result = _adapt_sequence(sequence_dir, split, cfg, writer, T_lane_cam)
-                except ValueError as err:  # LaneFileError names the file; the store's own checks name the clip
-                    result = SequenceResult(sequence_dir.name, FAILED, error=str(err))
-                results.append(result)
-    return results
+    adapt_sequence = partial(_adapt_sequence, cfg=cfg, T_lane_cam=T_lane_cam)
+    return adapt_folders(MADE_BY, {"lane_frame": LANE_FRAME, "camera": camera}, cfg.output, cfg.root, cfg.splits,
+                         adapt_sequence, lambda sequence, error: SequenceResult(sequence, FAILED, error=error))  # fmt: skip
 
 
 def _adapt_sequence(
-    sequence_dir: Path, split: str, cfg: OnceAdapterConfig, writer: StoreWriter, T_lane_cam: np.ndarray
+    writer: StoreWriter, sequence_dir: Path, split: str, cfg: OnceAdapterConfig, T_lane_cam: np.ndarray
 ) -> SequenceResult:
     """Write and commit one sequence's clip unless the store holds it unchanged."""
     sequence = sequence_dir.name
@@ -125,18 +103,17 @@ def _adapt_sequence(
     source = str(sequence_dir.resolve())
     pose_sha = file_sha256(pose_file) if pose_file is not None else None
     sha256 = fingerprint(paths, {"tags": tags, "poses": str(pose_file), "poses_sha256": pose_sha})
-    if writer.kept_sha256(source, split) == sha256:
-        return SequenceResult(sequence, KEPT, len(paths), sequence not in writer.manifest.options[WITHOUT_POSE],
-                              len(labels) - len(paths))  # fmt: skip
+    kept_pose = kept_with_pose(writer, source, split, sha256)
+    if kept_pose is not None:
+        return SequenceResult(sequence, KEPT, len(paths), kept_pose, len(labels) - len(paths))
 
     frames = [read_labeled_frame(path, T_lane_cam) for path in paths]
     poses = _world_from_lane(pose_file, paths, T_lane_cam) if pose_file is not None else None
+    has_pose = poses is not None
     path_inside(Path(cfg.output) / CLIPS_DIR, f"{sequence}{CLIP_SUFFIX}", f"sequence {sequence!r}")  # names a file
-    path = write_clip(cfg.output, sequence, _records(sequence_dir, cfg.images, frames, tags, T_lane_cam, poses))
-    clip = ClipEntry(sequence, source, split, len(frames), frames[0].timestamp_ns, frames[-1].timestamp_ns,
-                     file_sha256(path))
-    writer.commit(SourceEntry(source, sha256, len(frames)), [clip], marks=[] if poses else [WITHOUT_POSE])
-    return SequenceResult(sequence, WRITTEN, len(frames), poses is not None, len(labels) - len(paths))
+    commit_clip(writer, cfg.output, source, split, sha256, [frame.timestamp_ns for frame in frames],
+                _records(sequence_dir, cfg.images, frames, tags, T_lane_cam, poses), has_pose)  # fmt: skip
+    return SequenceResult(sequence, WRITTEN, len(frames), has_pose, len(labels) - len(paths))
 
 
 def _world_from_lane(pose_file: Path, labels: Sequence[Path], T_lane_cam: np.ndarray) -> list[np.ndarray]:
@@ -162,17 +139,7 @@ def _records(
         relative = frame_tags[LABEL_PATH_TAG].removesuffix(".json") + ".jpg"
         image_path = (sequence_dir.parent / relative if images is None
                       else path_inside(images, relative, f"image {relative!r}"))  # fmt: skip
-        image, encoding, width, height = read_image_file(image_path, f"the image of label {relative[:-4]}.json")
-        yield FrameRecord(
-            timestamp_ns=frame.timestamp_ns,
-            image=image,
-            image_encoding=encoding,
-            width=width,
-            height=height,
-            K=frame.K,
-            T_lane_cam=T_lane_cam,
-            T_world_lane=np.eye(4) if poses is None else poses[i],
-            labeled=True,
-            lanes=frame.lanes,
-            tags={**frame_tags, **far_to_near_tag(frame.far_to_near)},
-        )
+        yield labeled_record(
+            image_path, f"the image of label {relative[:-4]}.json", frame.timestamp_ns, frame.K, T_lane_cam,
+            np.eye(4) if poses is None else poses[i], frame.lanes, {**frame_tags, **far_to_near_tag(frame.far_to_near)},
+        )  # fmt: skip

@@ -8,32 +8,22 @@ Options are Hydra overrides of ``conf/once.yaml``. Exits with status 1 when a se
 
 from __future__ import annotations
 
-import sys
-from collections import Counter
-
 import hydra
 from omegaconf import DictConfig
 
+from data_ingest.adapter_cli import print_summary, run_or_exit
 from data_ingest.once.config import SCHEMA_NAME, OnceAdapterConfig, validate
 from lanelab.config_checks import options_or_exit, register_schema, run_hydra_tool
-from lanelab.json_files import LaneFileError
-from lanelab.store import ManifestError
 
 register_schema(SCHEMA_NAME, OnceAdapterConfig)
 
 
 def run(cfg: OnceAdapterConfig) -> bool:
     """Adapt and print a summary; True when every sequence made it."""
-    from data_ingest.once.adapter import FAILED, adapt  # heavy imports only once the options are good
+    from data_ingest.once.adapter import adapt  # heavy imports only once the options are good
 
     results = adapt(cfg)
-    for result in results:
-        if result.status == FAILED:
-            print(f"failed: {result.sequence}: {result.error}")
-    done = [r for r in results if r.status != FAILED]
-    statuses = Counter(result.status for result in results)
-    print(f"{len(results)} sequences: " + ", ".join(f"{n} {s}" for s, n in sorted(statuses.items()))
-          + f"; {sum(r.num_frames for r in done)} frames in {cfg.output}")
+    done = print_summary(results, "sequences", cfg.output)
     empty = sum(r.empty for r in done)
     if empty:
         print(f"note: {empty} empty label files skipped (as LATR's loader skips them)")
@@ -42,19 +32,12 @@ def run(cfg: OnceAdapterConfig) -> bool:
         print(f"note: {len(without_pose)} of {len(results)} sequences have no ego poses "
               f"({'no poses=' if cfg.poses is None else 'no annotation file under poses='}): T_world_lane is the identity in their clips, "
               "listed as clips_without_pose; temporal models refuse them unless run with without_ego_motion=single_frame")
-    return statuses[FAILED] == 0
+    return len(done) == len(results)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://lanelab.conf", config_name="once")
 def _run(cfg: DictConfig) -> None:
-    options = options_or_exit("lanelab-once", cfg, OnceAdapterConfig, validate)
-    try:  # a ConfigError of run ends as a bad option (run_hydra_tool)
-        ok = run(options)
-    except (LaneFileError, ManifestError) as err:
-        print(f"lanelab-once: {err}", file=sys.stderr)
-        sys.exit(1)
-    if not ok:
-        sys.exit(1)
+    run_or_exit("lanelab-once", run, options_or_exit("lanelab-once", cfg, OnceAdapterConfig, validate))
 
 
 def main() -> None:

@@ -12,8 +12,8 @@ from typing import Dict, Optional, Sequence
 
 from omegaconf import MISSING
 
+from data_ingest.dataset_adapter import check_splits
 from lanelab.config_checks import ConfigError, check_existing, load_config
-from lanelab.store import SPLITS
 
 
 @dataclass
@@ -37,11 +37,7 @@ def validate(cfg: OnceAdapterConfig) -> OnceAdapterConfig:
     check_existing("root", cfg.root, "folder")
     check_existing("images", cfg.images, "folder")
     check_existing("poses", cfg.poses, "folder")
-    if not cfg.splits:
-        raise ConfigError("splits is empty: name at least one ONCE-3DLanes split folder, e.g. splits.val=val")
-    for folder, split in cfg.splits.items():
-        if split not in SPLITS:
-            raise ConfigError(f"splits.{folder}={split!r} is not one of {', '.join(SPLITS)}")
+    check_splits(cfg.splits, "ONCE-3DLanes", "splits.val=val")
     if not (math.isfinite(cfg.camera.height) and cfg.camera.height > 0):
         raise ConfigError(f"camera.height={cfg.camera.height} must be a positive number of metres")
     if not (math.isfinite(cfg.camera.pitch_deg) and abs(cfg.camera.pitch_deg) < 45):

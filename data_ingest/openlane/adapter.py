@@ -33,31 +33,21 @@ the file, and the others go on.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
+from data_ingest.dataset_adapter import FAILED, KEPT, WRITTEN, adapt_folders, commit_clip, kept_with_pose
 from data_ingest.openlane.annotation import Annotation, read_annotation, timestamp_ns
 from data_ingest.openlane.config import OpenLaneAdapterConfig
-from data_ingest.source_files import FAILED, KEPT, WRITTEN, fingerprint, read_image_file
-from lanelab.config_checks import ConfigError
+from data_ingest.source_files import fingerprint, labeled_record
 from lanelab.json_files import LaneFileError, load_json_object
 from lanelab.openlane.file_paths import FILE_PATH_TAG
 from lanelab.openlane.lane_order import far_to_near_tag
 from lanelab.openlane.lists import OPENLANE_SCENARIOS, read_scenario_lists
-from lanelab.store import (
-    MADE_BY_OPTION,
-    WITHOUT_POSE,
-    ClipEntry,
-    FrameRecord,
-    SourceEntry,
-    StoreBusy,
-    StoreRefused,
-    StoreWriter,
-    file_sha256,
-    write_clip,
-)
+from lanelab.store import FrameRecord, StoreWriter
 
 MADE_BY = "lanelab-openlane"
 LANE_FRAME = "OpenLane evaluator's ground frame: x right, y forward, z up; origin below the camera"
@@ -75,6 +65,10 @@ class SegmentResult:
     has_pose: bool = True
     error: str = ""
 
+    @property
+    def name(self) -> str:  # the folder's name, as the summary prints it
+        return self.segment
+
 
 def adapt(cfg: OpenLaneAdapterConfig) -> list[SegmentResult]:
     """Make or update the store ``cfg.output``; one result per segment found, in order.
@@ -85,54 +79,36 @@ def adapt(cfg: OpenLaneAdapterConfig) -> list[SegmentResult]:
     """
     case_lists = read_scenario_lists(cfg.scenario_lists) if cfg.scenario_lists else {}
     scenes = _read_scenes(cfg.scene_tags) if cfg.scene_tags else {}
-    try:
-        writer = StoreWriter(cfg.output, {MADE_BY_OPTION: MADE_BY, "lane_frame": LANE_FRAME}, _segment_of,
-                             marks=[WITHOUT_POSE])
-    except (StoreRefused, StoreBusy) as err:
-        raise ConfigError(str(err)) from None
-    results = []
-    with writer:
-        for folder, split in cfg.splits.items():
-            split_dir = Path(cfg.annotations) / folder
-            if not split_dir.is_dir():
-                print(f"lanelab-openlane: no split folder {split_dir}, skipped")
-                continue
-            for segment_dir in sorted(path for path in split_dir.iterdir() if path.is_dir()):
-                segment = segment_dir.name
-                scene = scenes.get(segment) or scenes.get(segment.removesuffix("_with_camera_labels"), {})
-                try:
-                    result = _adapt_segment(segment_dir, split, cfg, writer, case_lists, scene)
-                except ValueError as err:  # LaneFileError names the file; the store's own checks name the clip
-                    result = SegmentResult(segment, FAILED, error=str(err))
-                results.append(result)
-    return results
+    adapt_segment = partial(_adapt_segment, cfg=cfg, case_lists=case_lists, scenes=scenes)
+    return adapt_folders(MADE_BY, {"lane_frame": LANE_FRAME}, cfg.output, cfg.annotations, cfg.splits, adapt_segment,
+                         lambda segment, error: SegmentResult(segment, FAILED, error=error))  # fmt: skip
 
 
 def _adapt_segment(
+    writer: StoreWriter,
     segment_dir: Path,
     split: str,
     cfg: OpenLaneAdapterConfig,
-    writer: StoreWriter,
     case_lists: Mapping[str, frozenset[str]],
-    scene: Mapping[str, str],
+    scenes: Mapping[str, Mapping[str, str]],
 ) -> SegmentResult:
     """Write and commit one segment's clip unless the store holds it unchanged."""
     segment = segment_dir.name
+    scene = scenes.get(segment) or scenes.get(segment.removesuffix("_with_camera_labels"), {})
     paths = sorted(segment_dir.glob("*.json"), key=timestamp_ns)
     if not paths:
         raise LaneFileError(segment_dir, "no annotation files (*.json) in this segment")
     tags = [_frame_tags(f"{segment}/{path.stem}", case_lists, scene) for path in paths]
     source = str(segment_dir.resolve())
     sha256 = fingerprint(paths, tags)
-    if writer.kept_sha256(source, split) == sha256:
-        return SegmentResult(segment, KEPT, len(paths), segment not in writer.manifest.options[WITHOUT_POSE])
+    kept_pose = kept_with_pose(writer, source, split, sha256)
+    if kept_pose is not None:
+        return SegmentResult(segment, KEPT, len(paths), kept_pose)
 
     annotations = [read_annotation(path) for path in paths]
     has_pose = all(a.T_world_lane is not None for a in annotations)
-    path = write_clip(cfg.output, segment, _frames(annotations, tags, Path(cfg.images), has_pose))
-    clip = ClipEntry(segment, source, split, len(paths), annotations[0].timestamp_ns, annotations[-1].timestamp_ns,
-                     file_sha256(path))
-    writer.commit(SourceEntry(source, sha256, len(paths)), [clip], marks=[] if has_pose else [WITHOUT_POSE])
+    commit_clip(writer, cfg.output, source, split, sha256, [a.timestamp_ns for a in annotations],
+                _frames(annotations, tags, Path(cfg.images), has_pose), has_pose)  # fmt: skip
     return SegmentResult(segment, WRITTEN, len(paths), has_pose)
 
 
@@ -142,21 +118,12 @@ def _frames(
     """The segment's frames (annotations and their tags), each image read only when its row
     group is written."""
     for annotation, frame_tags in zip(annotations, tags):
-        frame = f"the file_path of the frame at {annotation.timestamp_ns} ns"
-        image, encoding, width, height = read_image_file(images / annotation.file_path, frame)
-        yield FrameRecord(
-            timestamp_ns=annotation.timestamp_ns,
-            image=image,
-            image_encoding=encoding,
-            width=width,
-            height=height,
-            K=annotation.K,
-            T_lane_cam=annotation.T_lane_cam,
-            T_world_lane=annotation.T_world_lane if has_pose else np.eye(4),
-            labeled=True,
-            lanes=annotation.lanes,
-            tags={FILE_PATH_TAG: annotation.file_path, **far_to_near_tag(annotation.far_to_near), **frame_tags},
-        )
+        yield labeled_record(
+            images / annotation.file_path, f"the file_path of the frame at {annotation.timestamp_ns} ns",
+            annotation.timestamp_ns, annotation.K, annotation.T_lane_cam,
+            annotation.T_world_lane if has_pose else np.eye(4), annotation.lanes,
+            {FILE_PATH_TAG: annotation.file_path, **far_to_near_tag(annotation.far_to_near), **frame_tags},
+        )  # fmt: skip
 
 
 def _frame_tags(key: str, case_lists: Mapping[str, frozenset[str]], scene: Mapping[str, str]) -> dict[str, str]:
@@ -174,8 +141,3 @@ def _read_scenes(path: str) -> dict[str, dict[str, str]]:
             raise LaneFileError(path, f"'{segment}' must map to an object of scene, weather and time")
         scenes[segment] = {tag: str(scene[key]) for key, tag in SCENE_TAGS.items() if key in scene}
     return scenes
-
-
-def _segment_of(source: str) -> str:
-    """The segment a source (its folder) holds: the folder's name, which is its clip's id."""
-    return Path(source).name

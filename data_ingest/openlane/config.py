@@ -12,8 +12,8 @@ from typing import Dict, Optional, Sequence
 
 from omegaconf import MISSING
 
-from lanelab.config_checks import ConfigError, check_existing, load_config
-from lanelab.store import SPLITS
+from data_ingest.dataset_adapter import check_splits
+from lanelab.config_checks import ConfigError, check_existing, load_config  # noqa: F401 (ConfigError: validate's error, for callers)
 
 
 @dataclass
@@ -32,11 +32,7 @@ def validate(cfg: OpenLaneAdapterConfig) -> OpenLaneAdapterConfig:
     check_existing("images", cfg.images, "folder")
     check_existing("scenario_lists", cfg.scenario_lists, "folder")
     check_existing("scene_tags", cfg.scene_tags, "file")
-    if not cfg.splits:
-        raise ConfigError("splits is empty: name at least one OpenLane split folder, e.g. splits.validation=val")
-    for folder, split in cfg.splits.items():
-        if split not in SPLITS:
-            raise ConfigError(f"splits.{folder}={split!r} is not one of {', '.join(SPLITS)}")
+    check_splits(cfg.splits, "OpenLane", "splits.validation=val")
     return cfg
 
 

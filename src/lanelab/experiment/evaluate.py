@@ -91,12 +91,7 @@ def evaluate(
     out = Path(options.out)
     if options.get("format", "openlane") == "once":
         return _evaluate_once(trainer, module, datamodule, ckpt_path, out)
-    writer = OpenLaneWriter(out, ground_truth=datamodule.store)
-    trainer.callbacks.append(writer)
-    try:
-        trainer.predict(module, datamodule=datamodule, ckpt_path=ckpt_path, return_predictions=False)
-    finally:
-        trainer.callbacks.remove(writer)
+    _predict_into(OpenLaneWriter(out, ground_truth=datamodule.store), trainer, module, datamodule, ckpt_path)
     if not trainer.is_global_zero:
         return None
 
@@ -185,17 +180,25 @@ def _evaluate_once(
     """Predict into ONCE-3DLanes files (:class:`~lanelab.lightning.once_writer.OnceWriter`), score them
     with the ONCE metric on rank zero, print the table and write ``report.json`` / ``report.md``. No
     blind prior, scenarios or pictures: those belong to the OpenLane report."""
-    writer = OnceWriter(out, ground_truth=datamodule.store)
-    trainer.callbacks.append(writer)
-    try:
-        trainer.predict(module, datamodule=datamodule, ckpt_path=ckpt_path, return_predictions=False)
-    finally:
-        trainer.callbacks.remove(writer)
+    _predict_into(OnceWriter(out, ground_truth=datamodule.store), trainer, module, datamodule, ckpt_path)
     if trainer.is_global_zero:
         report = once_report(evaluate_once(out / GROUND_TRUTH, out / PREDICTIONS), {"store": str(datamodule.store),
                                                                                    "out": str(out)})
         print(once_markdown(report))
         print("wrote " + ", ".join(str(path) for path in write_once_report(report, out)))
+
+
+def _predict_into(
+    writer: pl.Callback, trainer: pl.Trainer, module: pl.LightningModule, datamodule: ClipDataModule,
+    ckpt_path: str | None,
+) -> None:
+    """Predict the datamodule's predict split with ``writer`` (which writes the files) among the
+    trainer's callbacks for this run only: the trainer may go on to fit or predict without it."""
+    trainer.callbacks.append(writer)
+    try:
+        trainer.predict(module, datamodule=datamodule, ckpt_path=ckpt_path, return_predictions=False)
+    finally:
+        trainer.callbacks.remove(writer)
 
 
 def store_frames(store: ClipStore, split: str) -> dict[str, StoreFrame]:
