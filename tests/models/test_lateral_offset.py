@@ -117,7 +117,7 @@ def test_the_loss_teaches_the_map_to_read_the_image():
     def offset_map() -> torch.Tensor:
         return net._encode(images, K[:, None], T_lane_cam[:, None])[0].offsets
 
-    for _ in range(80):
+    for _ in range(150):
         terms = loss(offset_map(), targets, K, T_lane_cam, IMAGE)
         optimiser.zero_grad()
         terms["total"].backward()
