@@ -8,6 +8,7 @@ Conventions are those of DESIGN.md, "Coordinate frames and units".
 from lanelab.geometry.camera import (
     backproject,
     backproject_to_lane,
+    cell_centres,
     in_image,
     intersect_ground,
     pixel_rays,
@@ -54,6 +55,7 @@ __all__ = [
     "LaneCurves",
     "backproject",
     "backproject_to_lane",
+    "cell_centres",
     "base_lane_transform",
     "base_link_to_lane",
     "compose",

@@ -51,6 +51,17 @@ def in_image(uv: Tensor, width: int, height: int) -> Tensor:
     return (u >= 0) & (u < width) & (v >= 0) & (v < height)
 
 
+def cell_centres(
+    map_size: tuple[int, int], image_size: tuple[int, int], dtype: torch.dtype, device: torch.device | str
+) -> Tensor:
+    """Pixel centres (h w, 2) = (u, v), row-major, of the cells of an (h, w) map covering an image of
+    image_size (H, W): cell (i, j) covers pixels [j, j + 1) * W / w (the pixel-area convention)."""
+    (h, w), (height, width) = map_size, image_size
+    v = (torch.arange(h, device=device, dtype=dtype) + 0.5) * (height / h)
+    u = (torch.arange(w, device=device, dtype=dtype) + 0.5) * (width / w)
+    return torch.stack(torch.meshgrid(u, v, indexing="xy"), -1).reshape(h * w, 2)
+
+
 def pixel_rays(uv: Tensor, K: Tensor) -> Tensor:
     """Camera-frame rays (..., N, 3) through pixels uv (..., N, 2), scaled to z = 1: K^-1 [u, v, 1]."""
     # K is upper triangular: back substitution, written out (exact, cheaper than an inverse, and

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor, nn
 
-from lanelab.geometry import intersect_ground
+from lanelab.geometry import cell_centres, intersect_ground
 from lanelab.models.heads import normalise_points
 from lanelab.models.positional_encoding import PointPositionalEncoding
 
@@ -51,12 +51,8 @@ class GroundPositionalEncoding(nn.Module):
 
     def _encoding(self, feature: Tensor, K: Tensor, T_lane_cam: Tensor, image_size: tuple[int, int]) -> Tensor:
         B, C, H_l, W_l = feature.shape
-        height, width = image_size
         dtype = torch.promote_types(feature.dtype, torch.float32)  # pixel geometry in at least float32
-        # Pixel-area convention: cell (i, j) covers image pixels [j, j + 1) * width / W_l.
-        v = (torch.arange(H_l, device=feature.device, dtype=dtype) + 0.5) * (height / H_l)
-        u = (torch.arange(W_l, device=feature.device, dtype=dtype) + 0.5) * (width / W_l)
-        uv = torch.stack(torch.meshgrid(u, v, indexing="xy"), -1).reshape(1, H_l * W_l, 2).expand(B, -1, -1)
+        uv = cell_centres((H_l, W_l), image_size, dtype, feature.device).expand(B, -1, -1)
         with torch.autocast(feature.device.type, enabled=False):
             points, on_ground = intersect_ground(uv, K.to(dtype), T_lane_cam.to(dtype))
         points = torch.cat([points.nan_to_num(0.0), on_ground[..., None].to(dtype)], -1)  # (B, H_l W_l, 4)

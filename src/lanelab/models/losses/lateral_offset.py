@@ -19,7 +19,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from lanelab.geometry import intersect_ground, project_lane_points
+from lanelab.geometry import cell_centres, intersect_ground, project_lane_points
 
 
 def lateral_offset_targets(
@@ -35,12 +35,10 @@ def lateral_offset_targets(
     in pixels of images of image_size (H, W); T_lane_cam (B, 4, 4); map_size (h, w) of the map.
     Returns the offset (B, h, w) in image widths, the metres per image width at each cell (B, h, w),
     the confidence target (B, h, w) in {0, 1} and the cells trained (B, h, w) bool."""
-    (height, width), (h, w) = image_size, map_size
+    width, (h, w) = image_size[1], map_size
     gt_y, gt_x = targets["gt_y"].float(), targets["gt_x"].float()
     B, G, S = gt_x.shape
-    v = (torch.arange(h, device=gt_x.device, dtype=gt_x.dtype) + 0.5) * (height / h)
-    u = (torch.arange(w, device=gt_x.device, dtype=gt_x.dtype) + 0.5) * (width / w)
-    uv = torch.stack(torch.meshgrid(u, v, indexing="xy"), -1).reshape(1, h * w, 2).expand(B, -1, -1)
+    uv = cell_centres((h, w), image_size, gt_x.dtype, gt_x.device).expand(B, -1, -1)
     K, T_lane_cam = K.float(), T_lane_cam.float()
     ground, on_ground = intersect_ground(uv, K, T_lane_cam)  # (B, P, 3)
     X, Y = ground[..., 0].nan_to_num(0.0), ground[..., 1].nan_to_num(-1.0)
