@@ -17,7 +17,7 @@ import sys
 import hydra
 from omegaconf import DictConfig
 
-from lanelab.config_checks import ConfigError, options_or_exit, register_schema
+from lanelab.config_checks import ConfigError, options_or_exit, register_schema, run_hydra_tool
 from log_predict.config import SCHEMA_NAME, PredictConfig, validate
 
 register_schema(SCHEMA_NAME, PredictConfig)
@@ -54,7 +54,7 @@ def _run(cfg: DictConfig) -> None:
 
 
 def main() -> None:
-    _run()
+    run_hydra_tool(NAME, _run)
 
 
 if __name__ == "__main__":

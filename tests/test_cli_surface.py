@@ -20,6 +20,8 @@ TOOLS = {  # tool -> (module, an option of its own)
     "lanelab-openlane": ("data_ingest.openlane.cli", "scene_tags"),
     "lanelab-once": ("data_ingest.once.cli", "poses"),
     "lanelab-train": ("lanelab.experiment.train", "ckpt_path"),
+    "lanelab-predict": ("log_predict.cli", "preview_frames"),
+    "lanelab-export": ("lanelab.deploy.export_cli", "batch_size"),
 }
 
 

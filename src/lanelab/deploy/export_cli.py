@@ -18,7 +18,7 @@ import sys
 import hydra
 from omegaconf import DictConfig
 
-from lanelab.config_checks import ConfigError, options_or_exit, register_schema
+from lanelab.config_checks import ConfigError, options_or_exit, register_schema, run_hydra_tool
 from lanelab.deploy.config import SCHEMA_NAME, ExportConfig, validate
 
 register_schema(SCHEMA_NAME, ExportConfig)
@@ -62,7 +62,7 @@ def _run(cfg: DictConfig) -> None:
 
 
 def main() -> None:
-    _run()
+    run_hydra_tool(NAME, _run)
 
 
 if __name__ == "__main__":
