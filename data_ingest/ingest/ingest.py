@@ -25,9 +25,8 @@ import glob
 import hashlib
 import json
 import time
-from collections import Counter
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -41,6 +40,7 @@ from data_ingest.ingest.clips import clips_for_train, cut, draw_split, log_name,
 from data_ingest.ingest.config import IngestConfig, store_options
 from data_ingest.ingest.errors import IngestInterrupted, LogError
 from data_ingest.ingest.frames import read_frames
+from data_ingest.ingest.log_result import FAILED, INGESTED, UNCHANGED, LogResult
 from data_ingest.ingest.mcap_reader import ReadReport
 from data_ingest.ingest.scan import LogContents
 from data_ingest.ingest.spill import Spill
@@ -60,27 +60,6 @@ from lanelab.store import (
     read_manifest,
     write_clip,
 )
-
-INGESTED, UNCHANGED, FAILED = "ingested", "unchanged", "failed"
-
-
-@dataclass
-class LogResult:
-    """What happened to one log."""
-
-    path: str
-    status: str  # ingested | unchanged | failed
-    sha256: str = ""
-    clips: list[ClipEntry] = field(default_factory=list)  # of a failed log: those written before it failed
-    num_frames: int = 0
-    labeled: int = 0
-    dropped: Counter = field(default_factory=Counter)  # frames, by reason
-    warnings: list[str] = field(default_factory=list)
-    error: str | None = None
-    seconds: float = 0.0
-    autolabeled: str = ""  # with autolabel.enabled: what the auto-labeler made of the log
-    quality: Quality = field(default_factory=Quality)  # auto-labels scored against the log's true lanes
-
 
 def source_name(path: str | Path) -> str:
     """The name a log is known by in a store and in its clip ids: its file stem, sanitised (:func:`log_name`)."""

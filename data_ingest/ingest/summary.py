@@ -5,13 +5,10 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from data_ingest.ingest.config import SplitConfig
+from data_ingest.ingest.log_result import INGESTED, LogResult
 from lanelab.store import SPLITS, ClipEntry, Manifest
-
-if TYPE_CHECKING:
-    from data_ingest.ingest.ingest import LogResult
 
 
 def print_summary(results: list[LogResult], manifest: Manifest, seconds: float, split: SplitConfig,
@@ -21,7 +18,7 @@ def print_summary(results: list[LogResult], manifest: Manifest, seconds: float, 
     print(f"\n{'log':<32}{'status':>10}{'frames':>8}{'clips':>7}{'labeled':>9}{'dropped':>9}")
     for r in results:
         counts = f"{r.num_frames:>8}{len(r.clips):>7}{_percent(r.labeled, r.num_frames):>9}" \
-                 f"{sum(r.dropped.values()):>9}" if r.status == "ingested" else ""
+                 f"{sum(r.dropped.values()):>9}" if r.status == INGESTED else ""
         print(f"{Path(r.path).name:<32}{r.status:>10}{counts}")
         if r.error:
             print(f"    error: {r.error}")

@@ -19,7 +19,8 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
 from data_ingest.ingest.config import load_ingest_config
-from data_ingest.ingest.ingest import LogResult, ingest
+from data_ingest.ingest.ingest import ingest
+from data_ingest.ingest.log_result import LogResult
 from data_ingest.synth.config import SynthConfig, load_synth_config, start_time_ns
 from data_ingest.synth.drive import SyntheticDrive
 from data_ingest.synth.frame import CameraModel, SynthFrame
