@@ -29,7 +29,8 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap_protobuf.schema import build_file_descriptor_set
 
 # mcap_ros2's own Writer encodes with these functions, but it owns its mcap.writer.Writer
-# with no public handle, so a file that also holds JSON channels uses them directly.
+# with no public handle, so a file that also holds JSON channels uses them directly. The module
+# is private: pyproject pins mcap-ros2-support to the versions tests/synth/test_ros2_cdr.py passed on.
 from mcap_ros2._dynamic import serialize_dynamic
 
 from data_ingest.synth import ros2_msgdefs
