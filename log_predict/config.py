@@ -25,6 +25,7 @@ class PredictionsConfig:
     lanes: str = MISSING
     scene: str = MISSING
     annotations: str = MISSING
+    ground_truth: str = MISSING
     line_width: float = MISSING
     annotation_width: float = MISSING
 
@@ -43,8 +44,10 @@ class PredictConfig:
     tolerances: TolerancesConfig = field(default_factory=TolerancesConfig)
     clips: ClipsConfig = field(default_factory=ClipsConfig)
 
-    def written_topics(self) -> tuple[str, str, str]:
-        return self.predictions.lanes, self.predictions.scene, self.predictions.annotations
+    def written_topics(self) -> tuple[str, str, str, str]:
+        """The topics lanelab-predict writes (the last only for a log with labels)."""
+        options = self.predictions
+        return options.lanes, options.scene, options.annotations, options.ground_truth
 
     def copied_topics(self) -> tuple[str, ...]:
         """What a file without merge copies from its log: what Foxglove needs to show the lanes."""
@@ -64,14 +67,14 @@ def validate(cfg: PredictConfig) -> PredictConfig:
     check_reading(cfg)
     check_positive("predictions.line_width", cfg.predictions.line_width)
     check_positive("predictions.annotation_width", cfg.predictions.annotation_width)
-    written = dict(zip(("lanes", "scene", "annotations"), cfg.written_topics()))
+    written = dict(zip(("lanes", "scene", "annotations", "ground_truth"), cfg.written_topics()))
     for key, topic in written.items():
         if not topic:
             raise ConfigError(f"predictions.{key} is empty")
         if topic in cfg.copied_topics():
             raise ConfigError(f"predictions.{key}={topic} is a topic of the log the output copies; name another")
     if len(set(written.values())) < len(written):
-        raise ConfigError(f"predictions.lanes, .scene and .annotations must be three topics, got {written}")
+        raise ConfigError(f"predictions.lanes, .scene, .annotations and .ground_truth must be four topics, got {written}")
     return cfg
 
 

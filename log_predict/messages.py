@@ -7,7 +7,9 @@
   calibration and extrinsic, cut at the image border (Foxglove's Image panel overlays them
   on the image of the same stamp);
 - ``lanelab.Lanes3D``: every lane with all its samples and their visibility, in the ego frame,
-  with its score (so lanelab-ingest reads a predicted log as labels).
+  with its score (so lanelab-ingest reads a predicted log as labels);
+- for a frame the log labels, a second ``foxglove.SceneUpdate`` of its ground-truth lanes (their
+  labelled-visible parts) in :data:`lanelab.viz.GT_COLOR`, so the 3D panel shows both.
 
 The lines of the first two are the visible part of each lane, exactly what an OpenLane
 prediction file holds (:func:`lanelab.openlane.write.prediction_json`). Foxglove types are
@@ -44,9 +46,11 @@ from data_ingest.synth.foxglove_json import dumps, to_json
 from lanelab.geometry import lane_to_base_link, project_lane_points
 from lanelab.lanes import Lane
 from lanelab.openlane.write import prediction_json
-from lanelab.viz import CATEGORY_COLORS
+from lanelab.viz import CATEGORY_COLORS, GT_COLOR
+from lanelab.viz.lanes import VISIBLE, Color as BGR
 
 ENTITY_ID = "lanelab/lanes"  # one entity, replaced frame by frame
+GT_ENTITY_ID = "lanelab/ground_truth"
 LANES3D_SCHEMA = Schema(LANES3D_TYPE, SchemaEncoding.JSONSchema, dumps(lanelab_msgs.SCHEMAS[LANES3D_TYPE]))
 _EDGE = 1e-3  # pixels: annotations stop this far inside the right and bottom borders (u < width, v < height)
 
@@ -54,7 +58,8 @@ _EDGE = 1e-3  # pixels: annotations stop this far inside the right and bottom bo
 @dataclass(frozen=True)
 class PredictedFrame:
     """A frame's predicted lanes (lane frame, every sample) and the camera they were seen by:
-    K (3, 3) and T_lane_cam (4, 4) of the image as logged, width x height pixels."""
+    K (3, 3) and T_lane_cam (4, 4) of the image as logged, width x height pixels; its labelled
+    lanes (lane frame) where the log labels it, else None."""
 
     stamp_ns: int
     lanes: list[Lane]
@@ -62,6 +67,7 @@ class PredictedFrame:
     T_lane_cam: np.ndarray
     width: int
     height: int
+    labels: list[Lane] | None = None
 
 
 class FoxgloveEncoding:
@@ -81,14 +87,25 @@ class FoxgloveEncoding:
 def visible_lines(lanes: Sequence[Lane], threshold: float) -> list[Lane]:
     """The lanes as an OpenLane prediction file holds them: the points of visibility above
     ``threshold``, lanes left with two or more."""
-    lines = prediction_json("", lanes, threshold, [lane.score for lane in lanes])["lane_lines"]
-    return [Lane(np.asarray(line["xyz"]), np.asarray(line["visibility"]), line["category"], score=line["score"])
+    scores = [lane.score for lane in lanes]
+    lines = prediction_json("", lanes, threshold, None if None in scores else scores)["lane_lines"]
+    return [Lane(np.asarray(line["xyz"]), np.asarray(line["visibility"]), line["category"], score=line.get("score"))
             for line in lines]  # fmt: skip
+
+
+def labelled_lines(frame: PredictedFrame) -> list[Lane]:
+    """The parts of the frame's ground-truth lanes labelled visible (as :func:`visible_lines`)."""
+    return visible_lines(frame.labels or [], VISIBLE)
 
 
 def rgba(category: int) -> Color:
     """The category's colour of lanelab.viz (BGR bytes) as a Foxglove colour."""
-    blue, green, red = CATEGORY_COLORS.get(int(category), CATEGORY_COLORS[0])
+    return foxglove_color(CATEGORY_COLORS.get(int(category), CATEGORY_COLORS[0]))
+
+
+def foxglove_color(bgr: BGR) -> Color:
+    """A lanelab.viz colour (BGR bytes) as a Foxglove colour."""
+    blue, green, red = bgr
     return Color(r=red / 255, g=green / 255, b=blue / 255, a=1.0)
 
 
@@ -102,16 +119,17 @@ def _timestamp(stamp_ns: int) -> Timestamp:
 
 
 def scene_update(frame: PredictedFrame, lines: Sequence[Lane], ego_frame: str, width: float,
-                 lifetime_ns: int) -> SceneUpdate:
-    """One entity in ``ego_frame`` with a line strip of ``width`` metres per line, shown for
-    ``lifetime_ns`` unless the next frame's replaces it."""
+                 lifetime_ns: int, color: BGR | None = None, entity_id: str = ENTITY_ID) -> SceneUpdate:
+    """One entity ``entity_id`` in ``ego_frame`` with a line strip of ``width`` metres per line,
+    in its category's colour or ``color``, shown for ``lifetime_ns`` unless the next frame's
+    replaces it."""
     identity = Pose(orientation=Quaternion(w=1.0))
     entity = SceneEntity(
-        timestamp=_timestamp(frame.stamp_ns), frame_id=ego_frame, id=ENTITY_ID,
+        timestamp=_timestamp(frame.stamp_ns), frame_id=ego_frame, id=entity_id,
         lifetime=Duration(seconds=lifetime_ns // 1_000_000_000, nanos=lifetime_ns % 1_000_000_000),
         lines=[LinePrimitive(type=LinePrimitive.LINE_STRIP, pose=identity, thickness=width, scale_invariant=False,
                              points=[Point3(x=x, y=y, z=z) for x, y, z in to_ego(line.points).tolist()],
-                             color=rgba(line.category))
+                             color=rgba(line.category) if color is None else foxglove_color(color))
                for line in lines],
     )  # fmt: skip
     return SceneUpdate(entities=[entity])
@@ -129,7 +147,13 @@ def image_annotations(frame: PredictedFrame, lines: Sequence[Lane], thickness: f
                 points=[Point2(x=u, y=v) for u, v in piece.tolist()], outline_color=rgba(line.category),
                 thickness=thickness,
             ))  # fmt: skip
-    return ImageAnnotations(points=annotations)
+    return ImageAnnotations(timestamp=_timestamp(frame.stamp_ns), points=annotations)
+
+
+def ground_truth_scene(frame: PredictedFrame, ego_frame: str, width: float, lifetime_ns: int) -> SceneUpdate:
+    """The frame's ground-truth lines (:func:`labelled_lines`) as :func:`scene_update`'s entity
+    :data:`GT_ENTITY_ID`, in :data:`lanelab.viz.GT_COLOR`."""
+    return scene_update(frame, labelled_lines(frame), ego_frame, width, lifetime_ns, GT_COLOR, GT_ENTITY_ID)
 
 
 def lanes3d(frame: PredictedFrame, ego_frame: str) -> bytes:

@@ -12,7 +12,8 @@ For one log (:func:`predict_log`):
 3. the log is read again and ``<output>/<name>.mcap`` written: its messages (every one with
    ``merge=true``, else the image, calibration, /tf and /tf_static topics) copied as they are,
    and after each predicted image its frame's messages (:mod:`log_predict.messages`) logged at
-   the image's log time. The file appears only once complete (an interrupted run leaves the
+   the image's log time (and, for a frame the log labels, its ground-truth lanes on
+   ``predictions.ground_truth``). The file appears only once complete (an interrupted run leaves the
    previous file, or none);
 4. ``<output>/<name>.png`` is drawn from the written file (:mod:`log_predict.preview`).
 
@@ -52,6 +53,7 @@ from log_predict.messages import (
     LANES3D_SCHEMA,
     FoxgloveEncoding,
     PredictedFrame,
+    ground_truth_scene,
     image_annotations,
     lanes3d,
     scene_update,
@@ -117,7 +119,8 @@ def predict_log(path: Path, cfg: PredictConfig, detector: TrainedDetector) -> Lo
                 record = dataclasses.replace(frame.record, image=spill.get(frame.image.data))
                 lanes = stream(record, reset=index in starts)
                 predicted[record.timestamp_ns] = PredictedFrame(record.timestamp_ns, lanes, record.K, record.T_lane_cam,
-                                                                record.width, record.height)
+                                                                record.width, record.height,
+                                                                record.lanes if record.labeled else None)
                 bar.update(1)
     result.warnings[:0] = report.problems()
     result.frames, result.clips = len(predicted), len(starts)
@@ -152,6 +155,8 @@ def _write(path: Path, out: Path, cfg: PredictConfig, report: ReadReport, predic
         log.add_channel(options.lanes, LANES3D_SCHEMA, MessageEncoding.JSON)
         log.add_channel(options.scene, foxglove.schema(SceneUpdate), foxglove.message_encoding)
         log.add_channel(options.annotations, foxglove.schema(ImageAnnotations), foxglove.message_encoding)
+        if any(frame.labels is not None for frame in predicted.values()):
+            log.add_channel(options.ground_truth, foxglove.schema(SceneUpdate), foxglove.message_encoding)
         for message in read_messages(path, copied, ReadReport(report.size)):
             log.copy(message)
             if message.topic != cfg.topics.image:
@@ -168,6 +173,9 @@ def _write(path: Path, out: Path, cfg: PredictConfig, report: ReadReport, predic
                 scene_update(frame, lines, cfg.frames.ego, options.line_width, lifetime_ns)))
             log.write(options.annotations, message.log_time, foxglove.serialize(
                 image_annotations(frame, lines, options.annotation_width)))
+            if frame.labels is not None:
+                log.write(options.ground_truth, message.log_time, foxglove.serialize(
+                    ground_truth_scene(frame, cfg.frames.ego, options.line_width, lifetime_ns)))
         log.finish()
     if missing:  # the log changed between the two readings
         raise LogError(f"{path}: {len(missing)} predicted images were not found on a second reading of the log")

@@ -25,13 +25,16 @@ from mcap_output import Record, as_foxglove, read_mcap
 from lanelab.experiment.evaluate import evaluate_checkpoint
 from lanelab.geometry import base_link_to_lane, project_lane_points
 from lanelab.store import ClipStore
-from lanelab.viz import CATEGORY_COLORS
+from lanelab.viz import CATEGORY_COLORS, GT_COLOR
+from lanelab.viz.lanes import VISIBLE
 from log_predict.cli import run
 from log_predict.config import load_predict_config
 
 ROOT = Path(__file__).resolve().parents[2]
 IMAGE, CALIBRATION = "/camera/front/image", "/camera/front/camera_info"
 LANES, SCENE, ANNOTATIONS = "/lanes/predicted", "/lanes/predicted/scene", "/lanes/predicted/annotations"
+GROUND_TRUTH, LABELS = "/lanes/ground_truth/scene", "/lanes"
+WRITTEN = (LANES, SCENE, ANNOTATIONS, GROUND_TRUTH)
 GAP = (START_NS + 800_000_000, START_NS + 1_300_000_000)  # ns: the images of this span are cut out, a 0.7 s gap
 
 
@@ -130,9 +133,9 @@ def test_every_message_decodes_and_stamps_are_the_images_sensor_times(gap_log: P
     profile, messages = read_mcap(predicted / "gap_drive.mcap")
     _, inputs = read_mcap(gap_log)
     topics = {m.topic for m in messages}
-    assert topics == {IMAGE, CALIBRATION, "/tf", "/tf_static", LANES, SCENE, ANNOTATIONS}
+    assert topics == {IMAGE, CALIBRATION, "/tf", "/tf_static", *WRITTEN}
     copied = [(m.topic, m.log_time, m.data) for m in inputs if m.topic in (IMAGE, CALIBRATION, "/tf", "/tf_static")]
-    assert sorted(copied) == sorted((m.topic, m.log_time, m.data) for m in messages if m.topic not in (LANES, SCENE, ANNOTATIONS))
+    assert sorted(copied) == sorted((m.topic, m.log_time, m.data) for m in messages if m.topic not in WRITTEN)
     images = sorted(image_stamp(m) for m in messages if m.topic == IMAGE)
     lanes = [m.decoded for m in messages if m.topic == LANES]
     assert sorted(m["timestamp"]["sec"] * 10**9 + m["timestamp"]["nsec"] for m in lanes) == images
@@ -140,8 +143,48 @@ def test_every_message_decodes_and_stamps_are_the_images_sensor_times(gap_log: P
         assert label["frame_id"] == "base_link" and label["lanes"]
         for lane in label["lanes"]:
             assert len(lane["points"]) == len(lane["visibility"]) == 100 and 0 <= lane["score"] <= 1
-    assert len([m for m in messages if m.topic == ANNOTATIONS]) == len(images)
+    annotations = [as_foxglove(m, ImageAnnotations) for m in messages if m.topic == ANNOTATIONS]
+    assert sorted(stamp(a) for a in annotations) == images  # each frame's, lanes or none, stamped as its image
     assert (predicted / "gap_drive.png").stat().st_size > 0
+
+
+def test_the_ground_truth_is_written_beside_the_predictions_in_its_own_colour(gap_log: Path, predicted: Path) -> None:
+    """Each labelled image gets the visible parts of its label's lanes (the log's /lanes, ego frame)
+    on the ground-truth topic, stamped as the image and logged with it, in GT_COLOR."""
+    _, inputs = read_mcap(gap_log)
+    _, messages = read_mcap(predicted / "gap_drive.mcap")
+    labels = {m.decoded["timestamp"]["sec"] * 10**9 + m.decoded["timestamp"]["nsec"]: m.decoded
+              for m in inputs if m.topic == LABELS}  # fmt: skip
+    images = {image_stamp(m): m.log_time for m in messages if m.topic == IMAGE}
+    scenes = [(m.log_time, as_foxglove(m, SceneUpdate)) for m in messages if m.topic == GROUND_TRUTH]
+    # The log labels some of its images (a labelled frame every so often), each of those gets its ground truth.
+    assert sorted(stamp(scene.entities[0]) for _, scene in scenes) == sorted(set(labels) & set(images))
+    assert 0 < len(scenes) < len(images) == 14
+    blue, green, red = GT_COLOR
+    drawn = 0
+    for log_time, scene in scenes:
+        (entity,) = scene.entities
+        t = stamp(entity)
+        assert t > 0 and images[t] == log_time and entity.frame_id == labels[t]["frame_id"] == "base_link"
+        expected = []
+        for lane in labels[t]["lanes"]:
+            visible = np.asarray(lane["visibility"]) > VISIBLE
+            if visible.sum() >= 2:
+                expected.append(np.asarray(lane["points"])[visible])
+        assert len(entity.lines) == len(expected) > 0
+        for line, points in zip(entity.lines, expected):
+            np.testing.assert_allclose([[p.x, p.y, p.z] for p in line.points], points, atol=1e-4)
+            assert (round(255 * line.color.r), round(255 * line.color.g), round(255 * line.color.b)) == (red, green, blue)
+            drawn += len(points)
+    assert drawn > 0
+
+
+def test_a_log_without_labels_gets_no_ground_truth_topic(checkpoint: Path, synth_log, tmp_path: Path) -> None:
+    log = write_log(tmp_path / "unlabelled.mcap", [m for m in read_log(synth_log("foxglove-protobuf"))
+                                                   if m.topic != LABELS])  # fmt: skip
+    assert predict(checkpoint, log, tmp_path / "out", "preview_frames=0") == 0
+    topics = {m.topic for m in read_mcap(tmp_path / "out" / log.name)[1]}
+    assert SCENE in topics and GROUND_TRUTH not in topics
 
 
 @pytest.mark.parametrize("encoding, expected", [
@@ -166,7 +209,7 @@ def test_merge_writes_the_log_and_its_predictions_in_one_file(checkpoint: Path, 
     assert predict(checkpoint, log, tmp_path, "merge=true", "preview_frames=0") == 0
     _, inputs = read_mcap(log)
     _, messages = read_mcap(tmp_path / log.name)
-    original = [(m.topic, m.log_time, m.data) for m in messages if m.topic not in (LANES, SCENE, ANNOTATIONS)]
+    original = [(m.topic, m.log_time, m.data) for m in messages if m.topic not in WRITTEN]
     assert sorted(original) == sorted((m.topic, m.log_time, m.data) for m in inputs)
     assert len([m for m in messages if m.topic == SCENE]) == len([m for m in inputs if m.topic == IMAGE])
 
