@@ -1,3 +1,8 @@
 """lanelab: an experiment platform for temporal monocular 3D lane detection."""
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("lanelab")  # set at install from git (setuptools-scm, pyproject.toml)
+except PackageNotFoundError:  # sources on the path, never installed
+    __version__ = "0.0.0+unknown"
