@@ -10,6 +10,7 @@ process that writes it, so the folder never mixes two runs' logs and config.
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor, wait
 from dataclasses import dataclass
@@ -25,6 +26,7 @@ from data_ingest.synth.frame import SynthFrame
 from data_ingest.synth.mcap_writer import LogSummary, write_drive_log
 from data_ingest.synth.preview import PreviewRow, frames_to_keep, write_contact_sheet
 from lanelab.atomic_file import PARTIAL_GLOB, atomic_output
+from lanelab.child_processes import init_worker, kill_pool
 from lanelab.config_checks import ConfigError
 from lanelab.folder_lock import FolderBusy, lock_folder
 
@@ -90,9 +92,10 @@ def write_one_log(cfg: SynthConfig, index: int, with_preview: bool, progress: Ca
 _counter = None  # frames written, shared with the worker processes
 
 
-def _init_worker(counter) -> None:
+def _init_worker(counter, parent_pid: int) -> None:
     global _counter
     _counter = counter
+    init_worker(parent_pid)
 
 
 def _count_frame(n: int = 1) -> None:
@@ -105,15 +108,23 @@ def _worker(cfg: SynthConfig, index: int, with_preview: bool) -> LogResult:
 
 
 def _run_parallel(cfg: SynthConfig, bar: tqdm) -> list[LogResult]:
+    """The logs written by ``cfg.workers`` processes, which die with this one; on Ctrl-C or an
+    error they are killed at once (the logs they were writing stay partial, cleared next run)."""
     ctx = mp.get_context("fork")
     counter = ctx.Value("q", 0)
-    with ProcessPoolExecutor(cfg.workers, mp_context=ctx, initializer=_init_worker, initargs=(counter,)) as pool:
+    pool = ProcessPoolExecutor(cfg.workers, mp_context=ctx, initializer=_init_worker, initargs=(counter, os.getpid()))
+    try:
         futures = [pool.submit(_worker, cfg, i, i < PREVIEW_LOGS and cfg.preview) for i in range(cfg.num_logs)]
         pending = set(futures)
         while pending:
             _, pending = wait(pending, timeout=0.25)
             bar.update(counter.value - bar.n)
-        return [future.result() for future in futures]
+        results = [future.result() for future in futures]
+    except BaseException:
+        kill_pool(pool)
+        raise
+    pool.shutdown()
+    return results
 
 
 def _print_summary(results: list[LogResult], seconds: float) -> None:
