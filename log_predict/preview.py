@@ -3,7 +3,10 @@
 A row per chosen frame: the camera image from the log's image topic with the
 ``foxglove.ImageAnnotations`` of its stamp drawn over it (as the Image panel overlays them),
 and a top view of the ``foxglove.SceneUpdate`` lines of the same stamp (what the 3D panel
-shows, seen from above, in the lane frame: x right, y ahead of the ego).
+shows, seen from above, in the lane frame: x right, y ahead of the ego): the predictions in
+their categories' colours over the ground truth's wider green lines where the log has labels.
+Every row's top view spans the same x range, wide enough for every line (at least ±20 m); a
+legend of the colours closes the picture.
 """
 
 from __future__ import annotations
@@ -24,11 +27,13 @@ from data_ingest.contract import IMAGE
 from data_ingest.ingest.mcap_reader import RawMessage, ReadReport, read_messages
 from data_ingest.ingest.messages import Decoder, ImageMsg
 from data_ingest.synth.foxglove_json import from_json
-from lanelab.evaluation.pictures import TOP_VIEW_X_RANGE, label_panel, write_png
+from lanelab.evaluation.pictures import label_panel, write_png
 from lanelab.geometry import base_link_to_lane
 from lanelab.lanes import Lane
 from lanelab.store.image_codec import decode_image
-from lanelab.viz import CATEGORY_COLORS, draw_polylines, draw_top_view
+from lanelab.viz import CATEGORY_COLORS, GT_COLOR, draw_polylines
+from lanelab.viz.lanes import AXIS_HEIGHT, TITLE_HEIGHT, TopView, fit_x_range, title_strip, top_view_width
+from lanelab.viz.panels import categories_of, stack_rows
 from log_predict.config import PredictConfig
 
 ROW_HEIGHT = 240  # pixels
@@ -49,35 +54,38 @@ def draw_preview(path: Path, cfg: PredictConfig, stamps: Collection[int], y_rang
     into the PNG ``out`` (written atomically); top views over y_range (metres)."""
     wanted = set(stamps)
     images: dict[int, ImageMsg] = {}
-    scenes: dict[int, SceneUpdate] = {}
+    scenes: dict[int, list[Lane]] = {}
+    truths: dict[int, list[Lane]] = {}
     annotations: dict[int, ImageAnnotations] = {}
     decoder = Decoder()
-    topics = (cfg.topics.image, cfg.predictions.scene, cfg.predictions.annotations)
+    topics = (cfg.topics.image, cfg.predictions.scene, cfg.predictions.ground_truth, cfg.predictions.annotations)
     for message in read_messages(path, topics, ReadReport(path.stat().st_size)):
         if message.topic == cfg.topics.image:
             image = decoder.decode(message, IMAGE)
             if image.stamp_ns in wanted:
                 images[image.stamp_ns] = image
-        elif message.topic == cfg.predictions.scene:
-            scene = decode_foxglove(message, SceneUpdate)
-            entity = scene.entities[0]
-            scenes[entity.timestamp.ToNanoseconds()] = scene
-        else:
+        elif message.topic == cfg.predictions.annotations:
             annotation = decode_foxglove(message, ImageAnnotations)
-            if annotation.points:
-                annotations[annotation.points[0].timestamp.ToNanoseconds()] = annotation
-    first = min(images) if images else 0
-    rows = [_row(images[t], scenes.get(t), annotations.get(t), f"{path.stem}  {(t - first) / 1e9:.1f} s", y_range)
-            for t in sorted(wanted & set(images))]
-    if not rows:
+            annotations[annotation.timestamp.ToNanoseconds()] = annotation
+        else:
+            (entity,) = decode_foxglove(message, SceneUpdate).entities
+            lanes = scenes if message.topic == cfg.predictions.scene else truths
+            lanes[entity.timestamp.ToNanoseconds()] = [_lane(line) for line in entity.lines]
+    drawn = sorted(wanted & set(images))
+    if not drawn:
         raise ValueError(f"{path}: none of the {len(wanted)} frames to draw is in the file")
-    width = max(row.shape[1] for row in rows)
-    return write_png(out, np.vstack([np.pad(row, ((0, 0), (0, width - row.shape[1]), (0, 0))) for row in rows]))
+    x_range = fit_x_range([lane for t in drawn for lane in (*scenes.get(t, []), *truths.get(t, []))], y_range)
+    first = min(images)
+    rows = [_row(images[t], scenes.get(t, []), truths.get(t, []), annotations.get(t),
+                 f"{path.stem}  {(t - first) / 1e9:.1f} s", x_range, y_range) for t in drawn]  # fmt: skip
+    categories = categories_of(*(scenes.get(t, []) for t in drawn))
+    kinds = ("ground truth",) if any(t in truths for t in drawn) else ()
+    return write_png(out, stack_rows(rows, categories, ROW_HEIGHT, kinds))
 
 
-def _row(image: ImageMsg, scene: SceneUpdate | None, annotations: ImageAnnotations | None, title: str,
-         y_range: tuple[float, float]) -> np.ndarray:
-    """[image + annotations | top view of the scene's lines] at ROW_HEIGHT pixels."""
+def _row(image: ImageMsg, predicted: list[Lane], truth: list[Lane], annotations: ImageAnnotations | None, title: str,
+         x_range: tuple[float, float], y_range: tuple[float, float]) -> np.ndarray:
+    """[image + annotations | top view of the ground truth and predicted lines] at ROW_HEIGHT pixels."""
     picture = np.ascontiguousarray(decode_image(_Encoded(image))[..., ::-1])  # RGB -> BGR
     scale = ROW_HEIGHT / picture.shape[0]
     picture = cv2.resize(picture, (round(picture.shape[1] * scale), ROW_HEIGHT), interpolation=cv2.INTER_AREA)
@@ -85,10 +93,11 @@ def _row(image: ImageMsg, scene: SceneUpdate | None, annotations: ImageAnnotatio
         # Pixel coordinates are continuous with edges at integers, so scaling them is exact.
         line = scale * np.array([[p.x, p.y] for p in annotation.points])
         picture = draw_polylines(picture, [line], [_bgr(annotation.outline_color)], max(1, round(annotation.thickness)))
-    lanes = [Lane(_lane_frame(line.points), np.ones(len(line.points)), _CATEGORY_OF_COLOR.get(_bgr(line.color), 0))
-             for line in _lines(scene)]  # fmt: skip
-    top = draw_top_view(lanes, (ROW_HEIGHT, ROW_HEIGHT // 2), TOP_VIEW_X_RANGE, y_range, title="3D lines")
-    return np.hstack([label_panel(picture, title), top])
+    width = top_view_width(ROW_HEIGHT, x_range, y_range)
+    view = TopView((ROW_HEIGHT - TITLE_HEIGHT, width), x_range, y_range, axis_height=AXIS_HEIGHT)
+    top = view.draw(view.canvas(), truth, thickness=4, show_hidden=False, color=GT_COLOR)
+    top = view.draw(top, predicted, thickness=2, show_hidden=False)
+    return np.hstack([label_panel(picture, title), np.vstack([title_strip("3D panel", width, TITLE_HEIGHT), top])])
 
 
 class _Encoded:
@@ -98,13 +107,11 @@ class _Encoded:
         self.image, self.image_encoding, self.width, self.height = image.data, image.encoding, image.width, image.height
 
 
-def _lines(scene: SceneUpdate | None) -> list[Any]:
-    return [line for entity in scene.entities for line in entity.lines] if scene is not None else []
-
-
-def _lane_frame(points: Any) -> np.ndarray:
-    """Ego-frame (ROS base_link) points -> the lane frame (P, 3)."""
-    return base_link_to_lane(torch.tensor([[p.x, p.y, p.z] for p in points], dtype=torch.float64).reshape(-1, 3)).numpy()
+def _lane(line: Any) -> Lane:
+    """A 3D line of the scene (ego frame, ROS base_link) as a lane in the lane frame, its
+    category read from its colour (ground truth's green reads as category 0)."""
+    points = torch.tensor([[p.x, p.y, p.z] for p in line.points], dtype=torch.float64).reshape(-1, 3)
+    return Lane(base_link_to_lane(points).numpy(), np.ones(len(points)), _CATEGORY_OF_COLOR.get(_bgr(line.color), 0))
 
 
 def _bgr(color: Any) -> tuple[int, int, int]:

@@ -1,8 +1,10 @@
 """Contact sheet of generated drives: frames with their GT lanes drawn, and a top view.
 
 One row per log: the first frame as rendered, a few frames spread over the drive with
-the ground-truth lanes projected on them, then the top view of the last one, under a caption with the
-log's name and scenario. Written as a PNG so a person sees what was generated.
+the ground-truth lanes projected on them, then the top view of the last one (wide enough for
+every lane, at least ±20 m), under a caption with the log's name and scenario; a legend of the
+colours (the categories drawn, hidden parts) closes the sheet. Written as a PNG so a person
+sees what was generated.
 """
 
 from __future__ import annotations
@@ -19,8 +21,11 @@ from data_ingest.synth.frame import CameraModel, SynthFrame
 from lanelab.atomic_file import atomic_output
 from lanelab.geometry.frames import extrinsic_base_to_lane
 from lanelab.viz import draw_lanes_on_image, draw_top_view
+from lanelab.viz.lanes import fit_x_range, top_view_width
+from lanelab.viz.panels import categories_of, stack_rows
 
 CAPTION_HEIGHT = 22
+TOP_VIEW_Y_RANGE = (0.0, 200.0)  # metres ahead: the ground truth's range
 
 
 @dataclass
@@ -55,7 +60,9 @@ def _row_image(row: PreviewRow, tile_width: int) -> np.ndarray:
         cv2.putText(tile, label, (4, tile_height - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
         tiles.append(tile)
     last = row.frames[-1]
-    tiles.append(draw_top_view(last.lanes, size=(tile_height, max(tile_height // 2, 60)), title="top"))
+    x_range = fit_x_range(last.lanes, TOP_VIEW_Y_RANGE)
+    size = (tile_height, top_view_width(tile_height, x_range, TOP_VIEW_Y_RANGE))
+    tiles.append(draw_top_view(last.lanes, size, x_range, TOP_VIEW_Y_RANGE, title="top view"))
     strip = np.concatenate(tiles, axis=1)
     caption = np.full((CAPTION_HEIGHT, strip.shape[1], 3), 20, np.uint8)
     text = row.name + "  " + "  ".join(f"{k}={v}" for k, v in sorted(row.scenario.items()))
@@ -64,13 +71,14 @@ def _row_image(row: PreviewRow, tile_width: int) -> np.ndarray:
 
 
 def contact_sheet(rows: Sequence[PreviewRow], tile_width: int = 320) -> np.ndarray:
-    """Stack one row per log into a BGR picture; rows are padded to the widest."""
-    images = [_row_image(row, tile_width) for row in rows if row.frames]
-    if not images:
+    """Stack one row per log into a BGR picture, rows padded to the widest, over a legend of
+    the categories drawn and the hidden-part line."""
+    drawn = [row for row in rows if row.frames]
+    if not drawn:
         raise ValueError("no frames to preview")
-    width = max(image.shape[1] for image in images)
-    padded = [np.pad(image, ((0, 0), (0, width - image.shape[1]), (0, 0))) for image in images]
-    return np.concatenate(padded, axis=0)
+    categories = categories_of(*(frame.lanes for row in drawn for frame in row.frames))
+    tile_height = round(drawn[0].camera.height * tile_width / drawn[0].camera.width)
+    return stack_rows([_row_image(row, tile_width) for row in drawn], categories, tile_height, kinds=("hidden part",))
 
 
 def write_contact_sheet(path: Path, rows: Sequence[PreviewRow], tile_width: int = 320) -> Path:

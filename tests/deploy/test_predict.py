@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import pytest
 import torch
@@ -145,7 +146,12 @@ def test_every_message_decodes_and_stamps_are_the_images_sensor_times(gap_log: P
             assert len(lane["points"]) == len(lane["visibility"]) == 100 and 0 <= lane["score"] <= 1
     annotations = [as_foxglove(m, ImageAnnotations) for m in messages if m.topic == ANNOTATIONS]
     assert sorted(stamp(a) for a in annotations) == images  # each frame's, lanes or none, stamped as its image
-    assert (predicted / "gap_drive.png").stat().st_size > 0
+    # The picture closes with a legend of its colours: the ground truth's, each predicted category's.
+    legend = cv2.imread(str(predicted / "gap_drive.png"))[2 * 240 :]  # under the two rows of preview_frames=2
+    categories = {lane["category"] for label in lanes for lane in label["lanes"]}
+    assert 0 < legend.shape[0] < 60
+    for color in (GT_COLOR, *(CATEGORY_COLORS[c] for c in categories)):
+        assert (legend == color).all(-1).any(), color
 
 
 def test_the_ground_truth_is_written_beside_the_predictions_in_its_own_colour(gap_log: Path, predicted: Path) -> None:

@@ -13,7 +13,7 @@ lanes in one panel, in one colour per set (``color``: :data:`GT_COLOR` for groun
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Iterable, Sequence
 
 import cv2
 import numpy as np
@@ -50,7 +50,8 @@ PREDICTION_COLOR: Color = (230, 40, 230)
 VISIBLE = 0.5  # label visibility from which a point is drawn as visible
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
-_GRID, _TICK_TEXT = (55, 55, 55), (150, 150, 150)
+_GRID, _TICK_TEXT = (55, 55, 55), (170, 170, 170)
+AXIS_HEIGHT, TITLE_HEIGHT = 18, 18  # pixels: draw_top_view's x axis and title strips
 
 
 def category_color(category: int) -> Color:
@@ -124,9 +125,9 @@ class TopView:
     right, y up the picture, in a picture of size (H, W) whose bottom strip of ``axis_height``
     pixels holds the x axis in metres (0: none).
 
-    :meth:`canvas` gives the empty view (grid every 10 m across and 50 m along, labelled in
-    metres; the ego at the bottom centre); :meth:`draw` adds lanes to one, so that several
-    sets of lanes can share a view.
+    :meth:`canvas` gives the empty view (grid every 10 m across, 5 or 50 m on narrow or wide
+    ranges, and 50 m along, labelled in metres; the ego at the bottom centre); :meth:`draw` adds
+    lanes to one, so that several sets of lanes can share a view.
     """
 
     size: tuple[int, int]
@@ -141,16 +142,17 @@ class TopView:
         v = (1.0 - (y - self.y_range[0]) / (self.y_range[1] - self.y_range[0])) * (height - 1)
         return np.stack([u, v], -1)
 
-    def canvas(self, title_height: int = 0) -> np.ndarray:
-        """The empty view; no y label in its top title_height pixels (where a title goes)."""
+    def canvas(self) -> np.ndarray:
+        """The empty view."""
         height, width = self.size
         plot_height = height - self.axis_height
         canvas = np.full((height, width, 3), 30, np.uint8)
         canvas[plot_height:] = 15
-        scale = min(0.35, max(0.25, self.axis_height / 40))
-        # The grid every 10 m (5 m on narrow ranges); labelled from x = 0 outwards, each label
-        # where it overlaps none placed before.
-        x_step = 10.0 if self.x_range[1] - self.x_range[0] >= 30 else 5.0
+        scale = label_scale(self.axis_height)
+        # The grid every 10 m (5 m on narrow ranges, 50 m on wide ones); labelled from x = 0
+        # outwards, each label where it overlaps none placed before.
+        span = self.x_range[1] - self.x_range[0]
+        x_step = 5.0 if span < 30 else 10.0 if span < 120 else 50.0
         ticks = np.arange(np.ceil(self.x_range[0] / x_step) * x_step, self.x_range[1] + 1e-6, x_step)
         placed: list[tuple[int, int]] = []
         for x in sorted(ticks, key=abs):
@@ -166,8 +168,8 @@ class TopView:
         for y in np.arange(np.ceil(self.y_range[0] / 50) * 50, self.y_range[1] + 1e-6, 50.0):
             v = int(round(self.pixels(np.array(self.x_range[0]), np.array(y))[1]))
             cv2.line(canvas, (0, v), (width - 1, v), _GRID, 1)
-            if max(v - 2, 10) - 8 >= title_height:  # the label's top row
-                cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, 10)), _FONT, 0.3, _TICK_TEXT, 1, cv2.LINE_AA)
+            (_, h), _ = cv2.getTextSize("0", _FONT, scale, 1)
+            cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, h + 1)), _FONT, scale, _TICK_TEXT, 1, cv2.LINE_AA)
         ego = self.pixels(np.array(0.0), np.array(max(self.y_range[0], 0.0)))
         cv2.circle(canvas, (int(ego[0]), int(min(ego[1], plot_height - 4))), 3, (0, 255, 0), -1)
         return canvas
@@ -183,6 +185,33 @@ class TopView:
             pixels = self.pixels(points[:, 0], points[:, 1])
             _draw_lane(plot, lane, pixels, np.ones(len(points), bool), thickness, show_hidden, color)
         return canvas
+
+
+def label_scale(strip_height: int) -> float:
+    """The font scale of a label in a strip of strip_height pixels: its letters about half as
+    tall, and never below 0.3 (smaller Hershey text is unreadable)."""
+    return float(np.clip(strip_height / 40, 0.3, 0.5))
+
+
+def fit_x_range(lanes: Iterable[Lane], y_range: tuple[float, float], least: float = 20.0,
+                step: float = 5.0) -> tuple[float, float]:
+    """A top view's x range (metres) centred on the ego that holds every point (P, 3) of the
+    lanes within y_range, with a metre to spare: (-r, r), r at least ``least``, rounded up to ``step``."""
+    reach = least
+    for lane in lanes:
+        points = np.asarray(lane.points, np.float64)
+        inside = (points[:, 1] >= y_range[0]) & (points[:, 1] <= y_range[1])
+        if inside.any():
+            reach = max(reach, float(np.abs(points[inside, 0]).max()) + 1.0)
+    reach = float(np.ceil(reach / step) * step)
+    return -reach, reach
+
+
+def top_view_width(height: int, x_range: tuple[float, float], y_range: tuple[float, float]) -> int:
+    """Pixels across a top view of ``height`` pixels: as many as true proportions give, between
+    height / 2 (narrow ranges stay readable) and height (wide ones stay a column)."""
+    proportional = height * (x_range[1] - x_range[0]) / (y_range[1] - y_range[0])
+    return int(np.clip(round(proportional), max(height // 2, 60), max(height, 60)))
 
 
 def draw_polylines(
@@ -210,9 +239,20 @@ def draw_top_view(
     title: str | None = None,
 ) -> np.ndarray:
     """Bird's-eye view (H, W, 3) of lanes in the lane frame (:class:`TopView`), in their
-    category colours, hidden parts thin; an optional title at the top left."""
-    view = TopView(size, x_range, y_range)
-    canvas = view.draw(view.canvas(title_height=18 if title else 0), lanes)
-    if title:
-        cv2.putText(canvas, title, (4, 14), _FONT, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
-    return canvas
+    category colours, hidden parts thin; an optional title in a strip of its own at the top
+    (the view below it, so that nothing is drawn over the title)."""
+    title_height = TITLE_HEIGHT if title else 0
+    view = TopView((size[0] - title_height, size[1]), x_range, y_range, axis_height=AXIS_HEIGHT)
+    canvas = view.draw(view.canvas(), lanes)
+    if not title:
+        return canvas
+    return np.vstack([title_strip(title, size[1], title_height), canvas])
+
+
+def title_strip(title: str, width: int, height: int) -> np.ndarray:
+    """A dark strip (height, width, 3) with title at its left, in the top view's label font."""
+    strip = np.full((height, width, 3), 15, np.uint8)
+    scale = label_scale(height)
+    (_, h), _ = cv2.getTextSize(title, _FONT, scale, 1)
+    cv2.putText(strip, title, (4, (height + h) // 2), _FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    return strip

@@ -114,15 +114,19 @@ def comparison_row(
     ])  # fmt: skip
 
 
-def legend(width: int, categories: Iterable[int], height: int) -> np.ndarray:
-    """A legend strip (h, width, 3), wrapped into as many lines as it needs: ground truth and
-    prediction's colours, the hidden-part line, then each category of `categories` (its colour
-    and OpenLane name). height: the row height it goes under (sizes the text)."""
+# What a picture draws in a colour of its own, beside the categories: name -> (colour, line width).
+KINDS: dict[str, tuple[Color, int]] = {
+    "ground truth": (GT_COLOR, 4), "prediction": (PREDICTION_COLOR, 2), "hidden part": (HIDDEN_COLOR, 1),
+}  # fmt: skip
+
+
+def legend(width: int, categories: Iterable[int], height: int, kinds: Sequence[str] = tuple(KINDS)) -> np.ndarray:
+    """A legend strip (h, width, 3), wrapped into as many lines as it needs: the colours of
+    `kinds` (of :data:`KINDS`: ground truth, prediction, the hidden-part line), then each category
+    of `categories` (its colour and OpenLane name). height: the row height it goes under (sizes the text)."""
     line_height = strip_height(height) + 4
     scale = max((line_height - 10) / 30, _SMALLEST_SCALE)
-    entries: list[tuple[str, Color, int]] = [  # name, colour, line width
-        ("ground truth", GT_COLOR, 4), ("prediction", PREDICTION_COLOR, 2), ("hidden part", HIDDEN_COLOR, 1),
-    ]  # fmt: skip
+    entries: list[tuple[str, Color, int]] = [(kind, *KINDS[kind]) for kind in kinds]  # name, colour, line width
     entries += [(LANE_CATEGORY_NAMES.get(c, f"category {c}"), category_color(c), 3) for c in sorted(set(categories))]
     swatch = 2 * line_height
     lines: list[list[tuple[int, tuple[str, Color, int]]]] = [[]]  # per line: (left, entry)
@@ -144,12 +148,13 @@ def legend(width: int, categories: Iterable[int], height: int) -> np.ndarray:
     return canvas
 
 
-def stack_rows(rows: Sequence[np.ndarray], categories: Iterable[int], height: int) -> np.ndarray:
+def stack_rows(rows: Sequence[np.ndarray], categories: Iterable[int], height: int,
+               kinds: Sequence[str] = tuple(KINDS)) -> np.ndarray:
     """Rows (h_i, w_i, 3) stacked, narrower ones padded black on the right, over the legend of
-    `categories` (see :func:`legend`; height: the rows' panel height)."""
+    `kinds` and `categories` (see :func:`legend`; height: the rows' panel height)."""
     width = max(row.shape[1] for row in rows)
     padded = [np.pad(row, ((0, 0), (0, width - row.shape[1]), (0, 0))) for row in rows]
-    return np.vstack([*padded, legend(width, categories, height)])
+    return np.vstack([*padded, legend(width, categories, height, kinds)])
 
 
 def categories_of(*lane_sets: Iterable[Lane]) -> set[int]:
