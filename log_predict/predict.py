@@ -17,7 +17,8 @@ For one log (:func:`predict_log`):
    previous file, or none);
 4. ``<output>/<name>.png`` is drawn from the written file (:mod:`log_predict.preview`).
 
-:func:`predict` runs one model over the logs of ``input``, with a progress bar per log; a log
+:func:`predict` runs one model over the logs of ``input``, with a progress bar per log (plain lines
+where the output is no terminal: :mod:`lanelab.progress`); a log
 that cannot be used is reported in one line naming it, and the others go on.
 """
 
@@ -34,7 +35,6 @@ import numpy as np
 from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from mcap.well_known import MessageEncoding, SchemaEncoding
-from tqdm import tqdm
 
 from data_ingest.contract import IMAGE
 from data_ingest.ingest.clips import cut, log_name
@@ -48,6 +48,7 @@ from lanelab.atomic_file import atomic_output
 from lanelab.deploy.stream import LaneStream
 from lanelab.deploy.trained import TrainedDetector
 from lanelab.evaluation.pictures import pick_frames
+from lanelab.progress import Progress
 from log_predict.config import PredictConfig
 from log_predict.messages import (
     LANES3D_SCHEMA,
@@ -114,7 +115,7 @@ def predict_log(path: Path, cfg: PredictConfig, detector: TrainedDetector) -> Lo
         stamps = np.array([frame.record.timestamp_ns for frame in log.frames], dtype=np.int64)
         starts = {part.start for part in cut(stamps, cfg.clips.gap_s, cfg.clips.max_length_s)}
         stream, predicted = LaneStream(detector), {}
-        with tqdm(total=len(log.frames), unit="frame", desc=path.name, dynamic_ncols=True, disable=None) as bar:
+        with Progress(len(log.frames), path.name, "frames") as bar:
             for index, frame in enumerate(log.frames):
                 record = dataclasses.replace(frame.record, image=spill.get(frame.image.data))
                 lanes = stream(record, reset=index in starts)

@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 import numpy as np
-from tqdm import tqdm
 
 from data_ingest.autolabel.log import autolabel_log
 from data_ingest.autolabel.quality import Quality, report_text, write_quality
@@ -47,6 +46,7 @@ from data_ingest.ingest.spill import Spill
 from data_ingest.ingest.summary import print_summary
 from data_ingest.ingest.workers import in_workers
 from lanelab.config_checks import ConfigError
+from lanelab.progress import Progress
 from lanelab.store import (
     UNREADABLE_SUFFIX,
     ClipEntry,
@@ -205,8 +205,7 @@ def _ingest_logs(logs: list[Path], cfg: IngestConfig, writer: StoreWriter) -> li
 
     total = sum(path.stat().st_size for path, _ in todo)
     recorded = 0
-    with tqdm(total=total, unit="B", unit_scale=True, desc="lanelab-ingest", dynamic_ncols=True,
-              disable=None) as bar:
+    with Progress(total, "lanelab-ingest", "B", unit_scale=True) as bar:
         try:
             for result in _run(todo, cfg, bar):
                 if result.status == INGESTED:
@@ -247,7 +246,7 @@ def _report_quality(results: list[LogResult], cfg: IngestConfig) -> None:
     print(f"auto-label report: {', '.join(str(path) for path in written)}")
 
 
-def _run(todo: list[tuple[Path, str | None]], cfg: IngestConfig, bar: tqdm) -> Iterator[LogResult]:
+def _run(todo: list[tuple[Path, str | None]], cfg: IngestConfig, bar: Progress) -> Iterator[LogResult]:
     """Results of ingesting each log, as they finish (in worker processes when cfg.workers > 1)."""
     if cfg.workers == 1 or len(todo) < 2:
         for path, known in todo:

@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from omegaconf import OmegaConf
-from tqdm import tqdm
 
 from data_ingest.synth.config import SynthConfig
 from data_ingest.synth.drive import SyntheticDrive
@@ -29,6 +28,7 @@ from lanelab.atomic_file import PARTIAL_GLOB, atomic_output
 from lanelab.child_processes import init_worker, kill_pool
 from lanelab.config_checks import ConfigError
 from lanelab.folder_lock import FolderBusy, lock_folder
+from lanelab.progress import Progress
 
 LOCK_NAME = ".synth.lock"
 PREVIEW_LOGS = 4
@@ -107,7 +107,7 @@ def _worker(cfg: SynthConfig, index: int, with_preview: bool) -> LogResult:
     return write_one_log(cfg, index, with_preview, _count_frame)
 
 
-def _run_parallel(cfg: SynthConfig, bar: tqdm) -> list[LogResult]:
+def _run_parallel(cfg: SynthConfig, bar: Progress) -> list[LogResult]:
     """The logs written by ``cfg.workers`` processes, which die with this one; on Ctrl-C or an
     error they are killed at once (the logs they were writing stay partial, cleared next run)."""
     ctx = mp.get_context("fork")
@@ -167,7 +167,7 @@ def _synthesize(cfg: SynthConfig, out: Path) -> list[LogResult]:
         tmp.write_text(OmegaConf.to_yaml(OmegaConf.structured(cfg)))
     todo = sum(1 for i in range(cfg.num_logs) if cfg.overwrite or not log_path(cfg, i).exists())
     start = time.perf_counter()
-    with tqdm(total=todo * frames_per_log(cfg), unit="frame", desc="lanelab-synth", dynamic_ncols=True) as bar:
+    with Progress(todo * frames_per_log(cfg), "lanelab-synth", "frames") as bar:
         if cfg.workers > 1 and cfg.num_logs > 1:
             results = _run_parallel(cfg, bar)
         else:

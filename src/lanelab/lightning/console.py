@@ -4,6 +4,8 @@ worth reading, once each.
 - :class:`ProgressBar`: Rich's bar with what the module logs with ``prog_bar=True`` (the
   training loss, the last and best validation F1), without Lightning's ``v_num`` (a logger's
   version: a W&B run id says nothing there);
+- :class:`ProgressLines`: the same as plain log lines, each tenth of an epoch or every 30 s and
+  after each validation, for output that is no terminal (:func:`progress_bar` picks);
 - :class:`ModelSummary`: Lightning's layer table through its logger (so it reaches the console
   and ``<run>/train.log`` alike), without the FLOPs column, which Lightning fills with 0 unless
   the module has an ``example_input_array`` (a batch of lanelab is a dict: none);
@@ -20,13 +22,18 @@ worth reading, once each.
 from __future__ import annotations
 
 import logging
+import sys
+import time
 import warnings
 from typing import Any
 
 import lightning.pytorch as pl
 from lightning.pytorch.callbacks import ModelSummary as LightningModelSummary
+from lightning.pytorch.callbacks import ProgressBar as LightningProgressBar
 from lightning.pytorch.callbacks import RichProgressBar
 from lightning.pytorch.utilities.model_summary.model_summary import _format_summary_table
+
+from lanelab.progress import LineTimer, is_terminal
 
 LIGHTNING_LOGGERS = ("lightning", "lightning.pytorch", "lightning.fabric")
 NOISE = (
@@ -49,6 +56,49 @@ class ProgressBar(RichProgressBar):
         metrics = super().get_metrics(trainer, pl_module)
         metrics.pop("v_num", None)
         return metrics
+
+
+class ProgressLines(LightningProgressBar):
+    """Training progress as log lines (:class:`lanelab.progress.LineTimer` says when):
+    ``epoch 1/10, step 30/60 (50 %), train/loss 1.23, 12 s``; after each validation its metrics."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._enabled, self._timer, self._start = True, LineTimer(None), time.monotonic()
+
+    def disable(self) -> None:
+        self._enabled = False
+
+    def enable(self) -> None:
+        self._enabled = True
+
+    def on_train_epoch_start(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        self._timer = LineTimer(self.total_train_batches)
+
+    def on_train_batch_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule, outputs: Any, batch: Any,
+                           batch_idx: int) -> None:  # fmt: skip
+        if not (self._enabled and trainer.is_global_zero and self._timer.due(batch_idx + 1)):
+            return
+        total = self.total_train_batches
+        epochs = f"/{trainer.max_epochs}" if trainer.max_epochs and trainer.max_epochs > 0 else ""
+        batches = f"/{total} ({100 * (batch_idx + 1) / total:.0f} %)" if total != float("inf") else ""
+        log.info("epoch %d%s, step %d%s%s, %.0f s", trainer.current_epoch + 1, epochs, batch_idx + 1, batches,
+                 self._metrics(trainer, pl_module, "train/"), time.monotonic() - self._start)  # fmt: skip
+
+    def on_validation_end(self, trainer: pl.Trainer, pl_module: pl.LightningModule) -> None:
+        if self._enabled and trainer.is_global_zero and not trainer.sanity_checking:
+            log.info("validation after step %d%s", trainer.global_step, self._metrics(trainer, pl_module, "val/"))
+
+    def _metrics(self, trainer: pl.Trainer, pl_module: pl.LightningModule, prefix: str) -> str:
+        metrics = self.get_metrics(trainer, pl_module)
+        return "".join(f", {name} {value:.4g}" if isinstance(value, float) else f", {name} {value}"
+                       for name, value in metrics.items() if name.startswith(prefix))  # fmt: skip
+
+
+def progress_bar(refresh_rate: int = 1, leave: bool = False) -> LightningProgressBar:
+    """The training's progress: Rich's bar (:class:`ProgressBar`, these options) where stdout
+    is a terminal, else :class:`ProgressLines`."""
+    return ProgressBar(refresh_rate=refresh_rate, leave=leave) if is_terminal(sys.stdout) else ProgressLines()
 
 
 class ModelSummary(LightningModelSummary):
