@@ -35,14 +35,21 @@ def mlp(in_dim: int, hidden_dim: int, out_dim: int, num_hidden: int) -> nn.Seque
     return nn.Sequential(*layers)
 
 
-def normalise_points(
-    points: Tensor, x_range: tuple[float, float], y_range: tuple[float, float], z_range: tuple[float, float]
+def point_normaliser(
+    x_range: tuple[float, float], y_range: tuple[float, float], z_range: tuple[float, float]
 ) -> Tensor:
-    """Points (..., 4) = (x, y, z, v) in metres -> x, y, z mapped by their (start, end) ranges
-    to [0, 1] (v as is): the input of the positional encodings."""
-    low = points.new_tensor([x_range[0], y_range[0], z_range[0], 0.0])
-    high = points.new_tensor([x_range[1], y_range[1], z_range[1], 1.0])
-    return (points - low) / (high - low)
+    """(2, 4) scale and shift that map points (x, y, z, v) in metres by their (start, end)
+    ranges to [0, 1] (v as is): ``normalise_points``'s constant, made once as a module's buffer."""
+    low = torch.tensor([x_range[0], y_range[0], z_range[0], 0.0], dtype=torch.float64)
+    high = torch.tensor([x_range[1], y_range[1], z_range[1], 1.0], dtype=torch.float64)
+    scale = 1 / (high - low)
+    return torch.stack([scale, -low * scale]).float()
+
+
+def normalise_points(points: Tensor, normaliser: Tensor) -> Tensor:
+    """Points (..., 4) = (x, y, z, v) in metres -> x, y, z mapped to [0, 1] by the ranges of
+    normaliser (2, 4) (``point_normaliser``): the input of the positional encodings. One kernel."""
+    return torch.addcmul(normaliser[1], points, normaliser[0])
 
 
 class LaneHead(nn.Module):
@@ -79,6 +86,7 @@ class LaneHead(nn.Module):
             nn.init.zeros_(branch[-1].bias)
         # Non-persistent: derived from the configuration, not learned.
         self.register_buffer("y", control_point_y(num_points, *self.y_range), persistent=False)
+        self.register_buffer("normaliser", point_normaliser(self.x_range, self.y_range, self.z_range), persistent=False)
 
     def refine(self, queries: Tensor, logits: Tensor) -> Tensor:
         """queries (B, N, M, C), previous pre-sigmoid (x, z, v) logits (B, N, M, 3) -> this
@@ -107,7 +115,7 @@ class LaneHead(nn.Module):
         """Points (..., 4) = (x, y, z, v) in metres -> each coordinate mapped by its range to
         [0, 1] (v as is), the input of the positional encoding. Propagated memory points may
         fall outside [0, 1]."""
-        return normalise_points(points, self.x_range, self.y_range, self.z_range)
+        return normalise_points(points, self.normaliser)
 
     def classify(self, queries: Tensor) -> Tensor:
         """queries (B, N, M, C) -> class logits (B, N, K + 1), background last."""
