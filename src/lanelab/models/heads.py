@@ -86,6 +86,14 @@ class LaneHead(nn.Module):
             nn.init.zeros_(branch[-1].bias)
         # Non-persistent: derived from the configuration, not learned.
         self.register_buffer("y", control_point_y(num_points, *self.y_range), persistent=False)
+        # control_points as one multiply-add: (x, y, z, v) = unit (x, x, z, v) * scale + shift,
+        # scale (4,) = (x span, 0, z span, 1), shift (M, 4) = (x start, y_m, z start, 0).
+        self.register_buffer("unit_channels", torch.tensor([0, 0, 1, 2]), persistent=False)
+        (x_start, x_end), (z_start, z_end) = self.x_range, self.z_range
+        self.register_buffer("unit_scale", torch.tensor([x_end - x_start, 0.0, z_end - z_start, 1.0]), persistent=False)
+        shift = torch.tensor([x_start, 0.0, z_start, 0.0]).repeat(num_points, 1)
+        shift[:, 1] = self.y
+        self.register_buffer("unit_shift", shift, persistent=False)
         self.register_buffer("normaliser", point_normaliser(self.x_range, self.y_range, self.z_range), persistent=False)
 
     def refine(self, queries: Tensor, logits: Tensor) -> Tensor:
@@ -106,10 +114,7 @@ class LaneHead(nn.Module):
         """Pre-sigmoid (x, z, v) logits (..., M, 3) -> control points (..., M, 4) = (x, y, z, v),
         metres, at least float32."""
         unit = logits.to(torch.promote_types(logits.dtype, torch.float32)).sigmoid()
-        x = unit[..., 0] * (self.x_range[1] - self.x_range[0]) + self.x_range[0]
-        z = unit[..., 1] * (self.z_range[1] - self.z_range[0]) + self.z_range[0]
-        y = self.y.to(x.dtype).expand_as(x)
-        return torch.stack([x, y, z, unit[..., 2]], dim=-1)
+        return torch.addcmul(self.unit_shift, unit.index_select(-1, self.unit_channels), self.unit_scale)
 
     def normalise(self, points: Tensor) -> Tensor:
         """Points (..., 4) = (x, y, z, v) in metres -> each coordinate mapped by its range to
