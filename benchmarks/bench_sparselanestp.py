@@ -1,7 +1,8 @@
 """SparseLaneSTP streaming inference speed and the cost of temporal fusion.
 
     python benchmarks/bench_sparselanestp.py [--configs tiny paper] [--device cpu|cuda]
-        [--dtype fp32|bf16] [--frames 10] [--warmup 3] [--threads N] [--json out.json] [--count-operators]
+        [--dtype fp32|bf16] [--cuda-graphs on|off] [--frames 10] [--warmup 3] [--threads N] [--json out.json]
+        [--count-operators]
 
 For each configuration three models with random weights stream the same random clip
 (``reset`` once, then ``step`` per frame, eval mode, no gradient):
@@ -12,7 +13,9 @@ For each configuration three models with random weights stream the same random c
 The variants run interleaved, frame by frame, so that load from other processes affects them
 alike; figures are medians over the timed frames (after ``--warmup`` frames). The temporal
 overhead is time(T=3) / time(T=0) - 1; the paper reports 9 % (Fig. 7: 11.0 vs 12.1 FPS
-against LATR with six layers). ``--dtype bf16`` runs under torch.autocast.
+against LATR with six layers). ``--dtype bf16`` runs under torch.autocast. On a GPU a step
+replays from a CUDA graph (``cuda_graphs``, :mod:`lanelab.models.cuda_graph`); ``--cuda-graphs off``
+launches its kernels one by one.
 
 ``--count-operators`` prints, instead of timings, how many operators that compute a tensor one
 streaming step runs (with a full memory), for STA's sparse and dense paths, counted on the CPU
@@ -101,7 +104,8 @@ def measure(config: dict, args: argparse.Namespace) -> dict[str, dict]:
     models = {}
     for label, variant in VARIANTS.items():
         torch.manual_seed(0)
-        models[label] = SparseLaneSTP(**{**config["model"], **variant}).to(device).eval()
+        net = SparseLaneSTP(**{**config["model"], **variant}, cuda_graphs=args.cuda_graphs == "on")
+        models[label] = net.to(device).eval()
     frames = clip(args.warmup + args.frames, config["image_size"], device)
     autocast = torch.autocast(device.type, dtype=torch.bfloat16) if args.dtype == "bf16" else nullcontext()
     sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
@@ -172,6 +176,7 @@ def main() -> None:
     parser.add_argument("--configs", nargs="+", choices=sorted(CONFIGS), default=["tiny", "paper"])
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--dtype", choices=["fp32", "bf16"], default="fp32")
+    parser.add_argument("--cuda-graphs", default="on", choices=["on", "off"], help="streaming steps on a GPU")
     parser.add_argument("--frames", type=int, default=10, help="timed frames")
     parser.add_argument("--warmup", type=int, default=3)
     parser.add_argument("--threads", type=int, help="torch CPU threads")
@@ -185,7 +190,8 @@ def main() -> None:
         return
 
     rows = []
-    print(f"device={args.device} dtype={args.dtype} torch={torch.__version__} threads={torch.get_num_threads()}")
+    graphs = f" cuda_graphs={args.cuda_graphs}" if args.device.startswith("cuda") else ""
+    print(f"device={args.device} dtype={args.dtype}{graphs} torch={torch.__version__} threads={torch.get_num_threads()}")
     memory = f" {'step MiB':>9}" if args.device.startswith("cuda") else ""
     print(f"{'config':<6} {'model':<18} {'ms/frame':>9} {'frames/s':>9} {'params (M)':>10}{memory}")
     for name in args.configs:
@@ -198,7 +204,8 @@ def main() -> None:
         rows.append({"config": name, "temporal_overhead": overhead})
         print(f"{name:<6} temporal overhead (T=3 vs T=0): {100 * overhead:+.1f} %  (paper: +9 %)")
     if args.json:
-        meta = {"device": args.device, "dtype": args.dtype, "torch": torch.__version__, "machine": platform.processor()}
+        meta = {"device": args.device, "dtype": args.dtype, "cuda_graphs": args.cuda_graphs, "torch": torch.__version__,
+                "machine": platform.processor()}  # fmt: skip
         args.json.write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
 
 

@@ -21,3 +21,19 @@ def test_it_shows_what_moves_data_between_host_and_device():
         x + torch.tensor([1.0, 2.0, 3.0])  # a tensor made from host data
         float(x.sum())  # a value read back
     assert log.host_transfers() == ["aten.lift_fresh.default", "aten._local_scalar_dense.default"]
+
+
+CONSTANT = torch.tensor([1.0, 2.0, 3.0], dtype=torch.float64)  # host memory, on a GPU
+
+
+def test_given_its_sources_it_shows_copies_of_tensors_from_elsewhere_and_boolean_masks():
+    x = torch.randn(3)
+    with OperatorLog(sources=[x]) as log:
+        y = x.double() * 2  # a copy of a source
+        y.float().exp()  # of a tensor made inside
+        x + CONSTANT.float()  # of a constant from elsewhere: host data on a GPU
+        x[x > 0]  # a boolean mask: the result's size is read back
+    assert log.host_transfers() == [
+        "aten._to_copy.default of a tensor from elsewhere",
+        "aten.index.Tensor by a boolean mask",
+    ]

@@ -4,9 +4,10 @@ import math
 import pytest
 import torch
 
+from lanelab.geometry import sampling_matrix
 from lanelab.models.memory_queue import MemoryState
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
-from lanelab.models.sta_masks import density, parallel_neighbours, sta_masks, temporal_neighbours
+from lanelab.models.sta_masks import curve_tangents, density, parallel_neighbours, sta_masks, temporal_neighbours
 
 Y = torch.linspace(3.0, 103.0, 20, dtype=torch.float64)
 
@@ -275,3 +276,11 @@ def test_positional_encoding_of_points():
     moved = points.clone()
     moved[..., 3] = 1 - moved[..., 3]  # only the visibility changes
     assert not torch.allclose(encoding(points), encoding(moved))
+
+
+@pytest.mark.parametrize("num_points", [2, 3, 10])
+def test_curve_tangents_are_the_catmull_rom_derivative_at_the_control_points(num_points):
+    points = torch.randn(2, 3, num_points, 4, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    knots = torch.linspace(0.0, 1.0, num_points, dtype=torch.float64)
+    derivative = sampling_matrix(num_points, knots, derivative=1) @ points[..., :3]
+    torch.testing.assert_close(curve_tangents(points), derivative / derivative.norm(dim=-1, keepdim=True))

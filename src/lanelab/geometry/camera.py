@@ -51,6 +51,14 @@ def in_image(uv: Tensor, width: int, height: int) -> Tensor:
     return (u >= 0) & (u < width) & (v >= 0) & (v < height)
 
 
+def image_extent(size: tuple[int, int], dtype: torch.dtype, device: torch.device | str) -> Tensor:
+    """(2,) = (width, height) of an image or map of size (H, W): what divides pixel positions
+    (u, v) into [0, 1]. Filled on the device (one kernel), not copied from host data as
+    ``torch.tensor`` would: a streaming step stays capturable as a CUDA graph."""
+    height, width = size
+    return torch.linspace(width, height, 2, dtype=dtype, device=device)
+
+
 def cell_centres(
     map_size: tuple[int, int], image_size: tuple[int, int], dtype: torch.dtype, device: torch.device | str
 ) -> Tensor:

@@ -13,6 +13,7 @@ static outputs, which the next replay overwrites.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Hashable
 from typing import Any
 
@@ -21,9 +22,12 @@ from torch import Tensor
 
 
 def _map_tensors(fn: Callable[[Tensor], Any], tree: Any) -> Any:
-    """fn applied to every tensor of nested dicts, lists and tuples; other leaves kept."""
+    """fn applied to every tensor of nested dicts, lists, tuples and dataclasses; other leaves kept."""
     if isinstance(tree, Tensor):
         return fn(tree)
+    if dataclasses.is_dataclass(tree) and not isinstance(tree, type):
+        fields = {f.name: _map_tensors(fn, getattr(tree, f.name)) for f in dataclasses.fields(tree)}
+        return dataclasses.replace(tree, **fields)
     if isinstance(tree, dict):
         return {key: _map_tensors(fn, value) for key, value in tree.items()}
     if isinstance(tree, (list, tuple)):
@@ -42,7 +46,7 @@ class CUDAGraphed:
     """fn(*args) whose CUDA work is replayed from a graph captured at the first call of each
     :func:`signature`; at most max_graphs of them (a stream has one, an evaluation's smaller last
     batch a second), beyond which calls run fn as it is. Arguments are tensors on one CUDA device
-    and hashable constants; fn returns tensors in nested dicts, lists and tuples."""
+    and hashable constants; fn returns tensors in nested dicts, lists, tuples and dataclasses."""
 
     def __init__(self, fn: Callable[..., Any], max_graphs: int = 4, warmup: int = 2) -> None:
         self.fn, self.max_graphs, self.warmup = fn, max_graphs, warmup

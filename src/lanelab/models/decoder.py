@@ -112,10 +112,10 @@ class LaneDecoder(nn.Module):
         if memory is not None:
             memory_pos = self.positional_encoding(self.head.normalise(memory.points))
         all_points, all_classes = [], []
+        points = self.head.control_points(logits)
         for index, layer in enumerate(self.layers):
-            if index > 0:
-                logits = logits.detach()
-            points = self.head.control_points(logits)
+            if index > 0:  # the points of the last layer's logits, detached as they are
+                logits, points = logits.detach(), all_points[-1].detach()
             query_pos = self.positional_encoding(self.head.normalise(points))
             queries = layer(queries, query_pos, points, memory, memory_pos, features, K, T_lane_cam, image_size)
             logits = self.head.refine(queries, logits)

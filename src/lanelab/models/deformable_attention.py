@@ -30,7 +30,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from lanelab.geometry import project_lane_points
+from lanelab.geometry import image_extent, project_lane_points
 
 
 class DeformableCrossAttention(nn.Module):
@@ -96,7 +96,7 @@ class DeformableCrossAttention(nn.Module):
         for level, feature in enumerate(features[:L]):
             H_l, W_l = feature.shape[-2:]
             # Offsets are in pixels of this level; locations in [0, 1] image coordinates.
-            size = torch.tensor([W_l, H_l], dtype=offsets.dtype, device=offsets.device)
+            size = image_extent((H_l, W_l), offsets.dtype, offsets.device)
             locations = reference[:, :, None, None, :] + offsets[:, :, :, level] / size  # (B,Q,h,P,2)
             grid = (2 * locations - 1).permute(0, 2, 1, 3, 4).reshape(B * h, Q, P, 2)
             value = self.value_proj(feature.flatten(2).transpose(1, 2))  # (B, H_l W_l, C)
@@ -123,12 +123,11 @@ class DeformableCrossAttention(nn.Module):
     ) -> tuple[Tensor, Tensor]:
         """Project points (B, Q, 3) -> normalised image coordinates (B, Q, 2) in [0, 1], clamped
         to the image, and a (B, Q) mask of those in front of the camera."""
-        height, width = image_size
         # At least float32, even under bf16 autocast: pixel positions need more than 8 mantissa bits.
         dtype = torch.promote_types(points.dtype, torch.float32)
         with torch.autocast(points.device.type, enabled=False):
             uv, _, in_front = project_lane_points(points.to(dtype), K.to(dtype), T_lane_cam.to(dtype))
-        scale = torch.tensor([width, height], dtype=uv.dtype, device=uv.device)
+        scale = image_extent(image_size, uv.dtype, uv.device)
         # Points behind the camera get a harmless finite location; their weights are zero anyway.
         reference = torch.where(in_front[..., None], uv / scale, torch.full_like(uv, 0.5)).clamp(0.0, 1.0)
         return reference.to(points.dtype), in_front

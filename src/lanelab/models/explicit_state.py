@@ -83,6 +83,7 @@ class ExplicitStateStep(nn.Module):
     def __init__(self, net: SparseLaneSTP | Bi2Lane, y: Tensor) -> None:
         super().__init__()
         self.net = copy.deepcopy(net)
+        self.net.cuda_graphs = False  # this step is traced and exported, not replayed
         settle_ties(self.net)
         for module in self.net.modules():
             if isinstance(module, SpatioTemporalAttention) and module.impl in ("auto", "sparse"):

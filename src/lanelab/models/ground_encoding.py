@@ -20,7 +20,7 @@ import torch
 from torch import Tensor, nn
 
 from lanelab.geometry import cell_centres, intersect_ground
-from lanelab.models.heads import normalise_points
+from lanelab.models.heads import normalise_points, point_normaliser
 from lanelab.models.positional_encoding import PointPositionalEncoding
 
 # Normalised coordinates are clamped here: cells near the horizon meet the ground kilometres away.
@@ -39,7 +39,7 @@ class GroundPositionalEncoding(nn.Module):
         z_range: tuple[float, float],
     ) -> None:
         super().__init__()
-        self.ranges = (tuple(x_range), tuple(y_range), tuple(z_range))
+        self.register_buffer("normaliser", point_normaliser(x_range, y_range, z_range), persistent=False)
         self.encoding = PointPositionalEncoding(embed_dim)
 
     def forward(
@@ -56,7 +56,7 @@ class GroundPositionalEncoding(nn.Module):
         with torch.autocast(feature.device.type, enabled=False):
             points, on_ground = intersect_ground(uv, K.to(dtype), T_lane_cam.to(dtype))
         points = torch.cat([points.nan_to_num(0.0), on_ground[..., None].to(dtype)], -1)  # (B, H_l W_l, 4)
-        normalised = normalise_points(points, *self.ranges).clamp(*_NORMALISED_LIMITS)
+        normalised = normalise_points(points, self.normaliser).clamp(*_NORMALISED_LIMITS)
         normalised = torch.cat([normalised[..., :3] * points[..., 3:], points[..., 3:]], -1)
         encoding = self.encoding(normalised.to(feature.dtype))  # (B, H_l W_l, C)
         return encoding.transpose(1, 2).reshape(B, C, H_l, W_l)

@@ -35,14 +35,21 @@ def mlp(in_dim: int, hidden_dim: int, out_dim: int, num_hidden: int) -> nn.Seque
     return nn.Sequential(*layers)
 
 
-def normalise_points(
-    points: Tensor, x_range: tuple[float, float], y_range: tuple[float, float], z_range: tuple[float, float]
+def point_normaliser(
+    x_range: tuple[float, float], y_range: tuple[float, float], z_range: tuple[float, float]
 ) -> Tensor:
-    """Points (..., 4) = (x, y, z, v) in metres -> x, y, z mapped by their (start, end) ranges
-    to [0, 1] (v as is): the input of the positional encodings."""
-    low = points.new_tensor([x_range[0], y_range[0], z_range[0], 0.0])
-    high = points.new_tensor([x_range[1], y_range[1], z_range[1], 1.0])
-    return (points - low) / (high - low)
+    """(2, 4) scale and shift that map points (x, y, z, v) in metres by their (start, end)
+    ranges to [0, 1] (v as is): ``normalise_points``'s constant, made once as a module's buffer."""
+    low = torch.tensor([x_range[0], y_range[0], z_range[0], 0.0], dtype=torch.float64)
+    high = torch.tensor([x_range[1], y_range[1], z_range[1], 1.0], dtype=torch.float64)
+    scale = 1 / (high - low)
+    return torch.stack([scale, -low * scale]).float()
+
+
+def normalise_points(points: Tensor, normaliser: Tensor) -> Tensor:
+    """Points (..., 4) = (x, y, z, v) in metres -> x, y, z mapped to [0, 1] by the ranges of
+    normaliser (2, 4) (``point_normaliser``): the input of the positional encodings. One kernel."""
+    return torch.addcmul(normaliser[1], points, normaliser[0])
 
 
 class LaneHead(nn.Module):
@@ -79,6 +86,15 @@ class LaneHead(nn.Module):
             nn.init.zeros_(branch[-1].bias)
         # Non-persistent: derived from the configuration, not learned.
         self.register_buffer("y", control_point_y(num_points, *self.y_range), persistent=False)
+        # control_points as one multiply-add: (x, y, z, v) = unit (x, x, z, v) * scale + shift,
+        # scale (4,) = (x span, 0, z span, 1), shift (M, 4) = (x start, y_m, z start, 0).
+        self.register_buffer("unit_channels", torch.tensor([0, 0, 1, 2]), persistent=False)
+        (x_start, x_end), (z_start, z_end) = self.x_range, self.z_range
+        self.register_buffer("unit_scale", torch.tensor([x_end - x_start, 0.0, z_end - z_start, 1.0]), persistent=False)
+        shift = torch.tensor([x_start, 0.0, z_start, 0.0]).repeat(num_points, 1)
+        shift[:, 1] = self.y
+        self.register_buffer("unit_shift", shift, persistent=False)
+        self.register_buffer("normaliser", point_normaliser(self.x_range, self.y_range, self.z_range), persistent=False)
 
     def refine(self, queries: Tensor, logits: Tensor) -> Tensor:
         """queries (B, N, M, C), previous pre-sigmoid (x, z, v) logits (B, N, M, 3) -> this
@@ -98,16 +114,13 @@ class LaneHead(nn.Module):
         """Pre-sigmoid (x, z, v) logits (..., M, 3) -> control points (..., M, 4) = (x, y, z, v),
         metres, at least float32."""
         unit = logits.to(torch.promote_types(logits.dtype, torch.float32)).sigmoid()
-        x = unit[..., 0] * (self.x_range[1] - self.x_range[0]) + self.x_range[0]
-        z = unit[..., 1] * (self.z_range[1] - self.z_range[0]) + self.z_range[0]
-        y = self.y.to(x.dtype).expand_as(x)
-        return torch.stack([x, y, z, unit[..., 2]], dim=-1)
+        return torch.addcmul(self.unit_shift, unit.index_select(-1, self.unit_channels), self.unit_scale)
 
     def normalise(self, points: Tensor) -> Tensor:
         """Points (..., 4) = (x, y, z, v) in metres -> each coordinate mapped by its range to
         [0, 1] (v as is), the input of the positional encoding. Propagated memory points may
         fall outside [0, 1]."""
-        return normalise_points(points, self.x_range, self.y_range, self.z_range)
+        return normalise_points(points, self.normaliser)
 
     def classify(self, queries: Tensor) -> Tensor:
         """queries (B, N, M, C) -> class logits (B, N, K + 1), background last."""

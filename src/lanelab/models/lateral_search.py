@@ -31,7 +31,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from lanelab.geometry import project_lane_points
+from lanelab.geometry import image_extent, project_lane_points
 
 
 class LateralSearch(nn.Module):
@@ -60,8 +60,7 @@ class LateralSearch(nn.Module):
         candidates[..., 0] += offsets
         with torch.autocast(points.device.type, enabled=False):
             uv, _, in_front = project_lane_points(candidates.view(B, -1, 3), K.to(dtype), T_lane_cam.to(dtype))
-        height, width = image_size
-        unit = uv / uv.new_tensor([width, height])
+        unit = uv / image_extent(image_size, uv.dtype, uv.device)
         inside = in_front & (unit >= 0).all(-1) & (unit < 1).all(-1)  # (B, N M K)
         grid = torch.where(inside[..., None], 2 * unit - 1, torch.zeros_like(unit))[:, :, None]  # (B, N M K, 1, 2)
         value = self.value_proj(feature)

@@ -8,7 +8,10 @@ It is a :class:`lanelab.models.api.LaneDetector`; two ways to run the same weigh
 - ``forward(batch)``, windowed (training, evaluation on windows): the F frames of a window are
   unrolled oldest -> current through a fresh memory queue, reset where a frame follows padding;
 - ``reset(mask)`` / ``step(frame)``, streaming (inference, streaming training): one frame per
-  call, the memory queue carried across calls.
+  call, the memory queue carried across calls. A step is one call of fixed shapes on the
+  queue's fixed-size state (an empty queue is all slots invalid), the reset inside it, and makes
+  no tensor from host data: streaming inference on a GPU replays it from a CUDA graph
+  (:mod:`lanelab.models.cuda_graph`), as Bi²Lane's.
 Like StreamPETR, memory contents are detached: gradients never flow into earlier frames.
 
 The single-frame LATR-like baseline is a configuration of the same code: num_memory_frames=0,
@@ -47,6 +50,7 @@ import torch
 from torch import Tensor, nn
 
 from lanelab.models.backbone import ResNet
+from lanelab.models.cuda_graph import CUDAGraphed
 from lanelab.models.decoder import DecoderLayer, LaneDecoder
 from lanelab.models.deformable_attention import DeformableCrossAttention
 from lanelab.models.fpn import FPN
@@ -101,6 +105,9 @@ class SparseLaneSTP(nn.Module):
     layer, on the finest feature level; null: none.
     lateral_offset: {stride (4 or 8), hidden, read_range, num_reads, iterations} of a
     LateralOffsetReader whose map moves the initial points onto the lanes it reads; null: none.
+    cuda_graphs: streaming inference on a GPU replays each step from a CUDA graph (the same
+    results, without the launch cost of its ~2,000 small kernels); not with attention="sparse",
+    whose key band is sized from the data.
     """
 
     def __init__(
@@ -138,6 +145,7 @@ class SparseLaneSTP(nn.Module):
         dca_content_weights: bool,
         lateral_search: Mapping[str, float] | None,
         lateral_offset: Mapping[str, Any] | None = None,
+        cuda_graphs: bool = True,
     ) -> None:
         super().__init__()
         reader = dict(lateral_offset) if lateral_offset is not None else None
@@ -184,9 +192,13 @@ class SparseLaneSTP(nn.Module):
         self.ground_encoding = (
             GroundPositionalEncoding(embed_dim, tuple(x_range), tuple(y_range), tuple(z_range)) if ground_encoding else None
         )
+        if self.reader is not None:  # the spline at the reader's y (S, M), made once rather than per step
+            self.register_buffer("read_basis", self.head.curves.bases(self.reader.read_y)[0], persistent=False)
         self.num_memory_frames, self.num_memory_lines = num_memory_frames, num_memory_lines
         self.embed_dim, self.num_points = embed_dim, num_points
         self._stream = self.new_memory()  # the streaming state
+        self.cuda_graphs = cuda_graphs and attention != "sparse"
+        self._graphed: CUDAGraphed | None = None  # the streaming step's, made at first use
 
     @property
     def head(self) -> LaneHead:
@@ -257,20 +269,27 @@ class SparseLaneSTP(nn.Module):
                                          logit; models.lateral_offset), or None
             anchors     (N,) the lines' lateral anchors (metres), or None without anchors
             memory      MemoryState | None, the propagated memory this frame attended to (what
-                        the temporal regulariser, eq. 12-13, compares with); None when empty
+                        the temporal regulariser, eq. 12-13, compares with); None without a
+                        memory (T = 0); after a reset every slot is invalid
         """
         return self.step_with(self._stream, frame)
 
     def step_with(self, memory: MemoryQueue, frame: Mapping[str, Tensor]) -> dict[str, Any]:
         """``step`` against the given memory queue instead of the model's own (an exported
         graph carries its memory as tensors: lanelab.models.explicit_state)."""
-        if "reset" in frame:
-            memory.reset(frame["reset"])
-        images = frame["images"]
-        (encoded,) = self._encode(images[:, None], frame["K"][:, None], frame["T_lane_cam"][:, None])
-        return self._decode(
-            encoded, frame["K"], frame["T_lane_cam"], frame["T_world_lane"], tuple(images.shape[-2:]), memory
-        )
+        images, T_world_lane = frame["images"], frame["T_world_lane"]
+        B = images.shape[0]
+        reset = frame["reset"].to(images.device) if "reset" in frame else images.new_zeros(B, dtype=torch.bool)
+        state = memory.state()
+        if self.num_memory_frames > 0 and (state is None or state.valid.shape[0] != B):
+            memory.reset(reset)  # a new batch size: every stream must start
+            memory.load(memory.empty_state(B, self.num_points, self.embed_dim,
+                                           (torch.float32, torch.float32, T_world_lane.dtype), images.device))  # fmt: skip
+        state = () if self.num_memory_frames == 0 else memory.state().tensors()
+        outputs, state = self._streaming_call(images)(images, frame["K"], frame["T_lane_cam"], T_world_lane, reset, *state)
+        if state:
+            memory.load(QueueState(*state))
+        return outputs
 
     def new_memory(self) -> MemoryQueue:
         """An empty streaming state of this model: its memory queue."""
@@ -297,6 +316,32 @@ class SparseLaneSTP(nn.Module):
         return self.head.decode(outputs["points"][-1], y)
 
     # ----------------------------------------------------------------- internals
+    def _streaming_call(self, images: Tensor) -> Any:
+        """The streaming step (``_stream_step``): replayed from a CUDA graph for inference on a GPU."""
+        if not (self.cuda_graphs and images.is_cuda and not self.training and not torch.is_grad_enabled()):
+            return self._stream_step
+        if self._graphed is None:
+            self._graphed = CUDAGraphed(self._stream_step)
+        return self._graphed
+
+    def _apply(self, fn: Any, recurse: bool = True) -> "SparseLaneSTP":
+        self._graphed = None  # a captured graph reads the parameters where they were before the move
+        return super()._apply(fn, recurse)
+
+    def _stream_step(
+        self, images: Tensor, K: Tensor, T_lane_cam: Tensor, T_world_lane: Tensor, reset: Tensor, *state: Tensor
+    ) -> tuple[dict[str, Any], tuple[Tensor, ...]]:
+        """One streaming frame on the memory queue's state as tensors (``QueueState``, none
+        without a memory): images (B, 3, H, W), K (B, 3, 3), T_lane_cam, T_world_lane (B, 4, 4),
+        reset (B,) bool (emptied first). Returns the outputs of ``step`` and the state after it."""
+        memory = self.new_memory()
+        if state:
+            memory.load(QueueState(*state))
+        memory.reset(reset)
+        (encoded,) = self._encode(images[:, None], K[:, None], T_lane_cam[:, None])
+        outputs = self._decode(encoded, K, T_lane_cam, T_world_lane, tuple(images.shape[-2:]), memory)
+        return outputs, () if not state else memory.state().tensors()
+
     def _encode(self, images: Tensor, K: Tensor, T_lane_cam: Tensor) -> list[_Encoded]:
         """The per-frame work, batched over frames: images (B, F, 3, H, W) with their K
         (B, F, 3, 3) and T_lane_cam (B, F, 4, 4) -> F encodings."""
@@ -321,12 +366,12 @@ class SparseLaneSTP(nn.Module):
     ) -> Tensor:
         """Initial point logits (B, N, M, 3) moved sideways onto the lanes the lateral-offset map
         (B, 2, h, w) shows (models.lateral_offset)."""
-        points = self.head.control_points(logits)
-        read_y = self.reader.read_y
+        points = self.head.control_points(logits)[..., :3]
 
         def curve(shifts: Tensor) -> Tensor:
             shifted = torch.cat([points[..., :1] + shifts[..., None], points[..., 1:]], -1)
-            return self.head.decode(shifted, read_y)[..., :3]
+            with torch.autocast(shifted.device.type, enabled=False):  # metres, in the points' precision
+                return self.read_basis.to(shifted) @ shifted
 
         shifts = self.reader.line_shifts(offsets, curve, self.head.y, K, T_lane_cam, image_size)
         return self.head.shift_x(logits, shifts)

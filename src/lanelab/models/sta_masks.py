@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from lanelab.geometry import sampling_matrix
 from lanelab.models.ranking import topk
 
 # Metres per candidate position by which an exported PNA settles near-ties the same way on every
@@ -65,11 +64,17 @@ class Neighbours:
 
 def curve_tangents(points: Tensor) -> Tensor:
     """Unit tangents (B, N, M, 3) of the Catmull-Rom curves through points (B, N, M, >=3) at
-    their control points (the spline's first derivative, continuous there)."""
+    their control points (the spline's first derivative, continuous there).
+
+    At control point k the derivative is (M - 1) (p_{k+1} - p_{k-1}) / 2, with the linear
+    phantom points of :mod:`lanelab.geometry.catmull_rom` at the ends: (M - 1) (p_1 - p_0) and
+    (M - 1) (p_{M-1} - p_{M-2}). Written as differences, not as its sampling matrix, which a step
+    would make from host data."""
     xyz = points[..., :3]
     M = xyz.shape[-2]
-    knots = torch.linspace(0.0, 1.0, M, dtype=xyz.dtype, device=xyz.device)
-    tangent = sampling_matrix(M, knots, derivative=1) @ xyz
+    steps = xyz[..., 1:, :] - xyz[..., :-1, :]  # (..., M - 1, 3)
+    padded = torch.cat([steps[..., :1, :], steps, steps[..., -1:, :]], dim=-2)  # each end's step twice
+    tangent = (padded[..., 1:, :] + padded[..., :-1, :]).mul_((M - 1) / 2)
     return tangent / tangent.norm(dim=-1, keepdim=True).clamp_min(torch.finfo(xyz.dtype).eps)
 
 
