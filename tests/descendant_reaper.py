@@ -3,15 +3,17 @@
 ``subprocess.run`` answers Ctrl-C by killing its child with SIGKILL, which leaves the child's own
 children (a tool's pool workers, DDP ranks) running with no parent. On Linux this plugin makes the
 pytest process the *child subreaper* of its descendants, so that such orphans are re-parented to
-pytest instead of to init, and at the end of the session, however it ends, it kills and reaps
-every descendant still there. (Tools make their workers die with them too,
-:mod:`lanelab.child_processes`; this catches whatever else a test leaves behind.)
+pytest instead of to init, and when the pytest process exits, however the session ended, it kills
+every descendant still running: at exit rather than at the session's end, because libraries' exit
+handlers (wandb's) still talk to their service processes then. Tools make their workers die with
+them too (:mod:`lanelab.child_processes`); this catches whatever else a test leaves behind.
 
 tests/conftest.py loads it for the suite; ``pytest -p descendant_reaper`` loads it elsewhere.
 """
 
 from __future__ import annotations
 
+import atexit
 import os
 import signal
 import time
@@ -75,7 +77,4 @@ def kill_descendants() -> None:
 
 def pytest_configure(config: pytest.Config) -> None:
     prctl(PR_SET_CHILD_SUBREAPER, 1)
-
-
-def pytest_unconfigure(config: pytest.Config) -> None:
-    kill_descendants()
+    atexit.register(kill_descendants)  # registered first, so it runs after the handlers of what the tests import
