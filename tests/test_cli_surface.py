@@ -31,6 +31,7 @@ def run(module: str, *args: str, cwd: Path | None = None) -> subprocess.Complete
                           env=env, cwd=cwd, check=False)  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tool", sorted(TOOLS))
 def test_help_shows_the_tools_own_options(tool: str) -> None:
     module, option = TOOLS[tool]
@@ -43,12 +44,14 @@ def test_help_shows_the_tools_own_options(tool: str) -> None:
         assert "model/backbone" not in result.stdout and "experiment:" not in result.stdout
 
 
+@pytest.mark.slow
 def test_demo_help_without_a_traceback() -> None:
     result = run("lanelab.demo", "--help")
     assert result.returncode == 0 and result.stderr == ""
     assert result.stdout.startswith("``lanelab-demo``") and "demo.out=DIR" in result.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tool", sorted(TOOLS))
 def test_an_unknown_option_is_one_line_and_exit_2(tool: str, tmp_path: Path) -> None:
     """Hydra's own refusal (exit 1, several lines before) now reads like lanelab's of +typo=1."""
@@ -62,6 +65,7 @@ EXPERIMENTS = sorted(path.name.removesuffix(".yaml") for path in (files("lanelab
                      if path.name.endswith(".yaml"))  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("args", "message"),
     [

@@ -96,6 +96,7 @@ def interrupt_when_ready(test_file: Path, ready, *plugins: str) -> set[int]:
         run.wait()
 
 
+@pytest.mark.slow
 def test_ctrl_c_while_a_fixture_runs_lanelab_synth_with_workers_leaves_no_process(tmp_path):
     """The run that the issue saw leave two lanelab-synth workers behind (no reaper here)."""
     out = tmp_path / "logs"

@@ -26,6 +26,7 @@ from lanelab.geometry.frames import extrinsic_base_to_lane, pose_base_to_lane
 from lanelab.metrics.openlane import summarize
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("log_index, detector_noise, min_f1, max_x_close, max_x_far", [
     (0, "row", 0.90, 0.04, 0.06),
     (1, "row", 0.87, 0.07, 0.08),

@@ -154,6 +154,7 @@ class StepCounter(pl.LightningModule):
         return torch.optim.SGD(self.parameters(), lr=0.1)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_two_rank_ddp_streams_see_every_frame_once_per_epoch_with_equal_steps(tmp_path):
     """Ranks and world size reach the sampler from the trainer (ddp_spawn, gloo)."""

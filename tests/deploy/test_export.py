@@ -56,6 +56,7 @@ def log_clip(checkpoint: Path, log: Path) -> list[dict[str, torch.Tensor]]:
     return [{**trained.model_input(r), "reset": torch.tensor([i in RESETS])} for i, r in enumerate(records)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt, suffix", [("torch", ".pt2"), ("onnx", ".onnx")])
 def test_the_exported_step_equals_step_over_a_clip_with_memory(fmt: str, suffix: str, checkpoint: Path, synth_log,
                                                                tmp_path: Path) -> None:
@@ -72,6 +73,7 @@ def test_the_exported_step_equals_step_over_a_clip_with_memory(fmt: str, suffix:
     }  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt, suffix", [("torch", ".pt2"), ("onnx", ".onnx")])
 def test_the_exported_bi2lane_equals_its_step_with_its_frame_cache(fmt: str, suffix: str, bi2lane_checkpoint: Path,
                                                                    synth_log, tmp_path: Path) -> None:
@@ -124,6 +126,7 @@ def read_metadata(path: Path, fmt: str) -> dict:
         return json.loads(archive.read(name))
 
 
+@pytest.mark.slow
 def test_a_single_frame_model_exports_without_memory(tmp_path: Path) -> None:
     torch.manual_seed(0)
     net = SparseLaneSTP(**BASELINE).eval()
@@ -137,6 +140,7 @@ def test_a_single_frame_model_exports_without_memory(tmp_path: Path) -> None:
     assert max(differences.values()) <= TOLERANCE, differences
 
 
+@pytest.mark.slow
 def test_the_cli_exports_a_bi2lane_checkpoint_and_says_what_it_wrote(bi2lane_checkpoint: Path, tmp_path: Path,
                                                                       capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "bi2lane.pt2"
@@ -150,6 +154,7 @@ def test_the_cli_exports_a_bi2lane_checkpoint_and_says_what_it_wrote(bi2lane_che
     assert out.exists()
 
 
+@pytest.mark.slow
 def test_a_failed_check_writes_nothing(checkpoint: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "model.pt2"
     options = [f"checkpoint={checkpoint}", "format=torch", f"out={out}", "check.frames=3", "check.tolerance=1e-30"]

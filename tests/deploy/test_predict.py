@@ -75,6 +75,7 @@ def predicted(checkpoint: Path, gap_log: Path, tmp_path_factory: pytest.TempPath
     return out
 
 
+@pytest.mark.slow
 def test_lines_lie_where_the_openlane_predictions_of_the_ingested_log_are(
     checkpoint: Path, gap_log: Path, predicted: Path, tmp_path: Path
 ) -> None:
@@ -193,6 +194,7 @@ def test_a_log_without_labels_gets_no_ground_truth_topic(checkpoint: Path, synth
     assert SCENE in topics and GROUND_TRUTH not in topics
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("encoding, expected", [
     ("ros2", ("ros2", "jsonschema", "json")),
     ("foxglove-json", ("", "jsonschema", "json")),
@@ -265,6 +267,7 @@ def test_a_missing_checkpoint_is_one_line_naming_it(tmp_path: Path, synth_log) -
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_bad_logs_are_one_line_each_naming_the_file_and_the_others_are_predicted(
     checkpoint: Path, synth_log, tmp_path: Path
 ) -> None:

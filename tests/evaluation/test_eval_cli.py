@@ -24,6 +24,7 @@ def run_eval(*args: str) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_the_command_prints_the_tables_and_writes_the_report_and_pictures(tmp_path):
     data = write_prediction_set(tmp_path)
     out = tmp_path / "out"
@@ -71,6 +72,7 @@ def test_the_error_budget_reads_each_file_once(tmp_path, monkeypatch):
     assert len(reads) == len(set(reads)) == 3  # the metric and the budget score the same frames
 
 
+@pytest.mark.slow
 def test_a_malformed_prediction_is_named(tmp_path):
     data = write_prediction_set(tmp_path)
     bad = data.pred_file("b")
@@ -81,6 +83,7 @@ def test_a_malformed_prediction_is_named(tmp_path):
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("value", [float("nan"), float("inf")], ids=["nan", "inf"])
 def test_a_prediction_with_nan_or_inf_points_is_named(tmp_path, value):
     data = write_prediction_set(tmp_path)
@@ -123,6 +126,7 @@ def test_bad_options_are_named(tmp_path, option, message):
         load_eval_config(options(data, tmp_path / "out", option))
 
 
+@pytest.mark.slow
 def test_the_command_names_unknown_and_missing_options(tmp_path):
     data = write_prediction_set(tmp_path)
     unknown = run_eval(*options(data, tmp_path / "out", "long_rnage=true"))

@@ -46,6 +46,7 @@ def test_a_ckpt_path_that_is_no_checkpoint_is_named(kind: str, message: str, tra
     assert not (tmp_path / "run" / "checkpoints").exists()
 
 
+@pytest.mark.slow
 def test_lanelab_train_names_a_truncated_ckpt_path_in_one_line(trained_checkpoint: Path, tiny_store: Path,
                                                                tmp_path: Path) -> None:  # fmt: skip
     path = bad_file("truncated", trained_checkpoint, tmp_path)

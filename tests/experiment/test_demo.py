@@ -20,6 +20,7 @@ MINIATURE = [
 ]  # fmt: skip
 
 
+@pytest.mark.slow
 def test_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     main([f"demo.out={tmp_path}", *MINIATURE])
     table = (tmp_path / COMPARISON_MD).read_text()

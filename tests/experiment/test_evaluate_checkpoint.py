@@ -19,6 +19,7 @@ from lanelab.experiment.config import load_train_config
 from lanelab.experiment.train import train
 
 
+@pytest.mark.slow
 def test_a_checkpoint_scores_as_at_the_end_of_its_run(tiny_store: Path, tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     one_epoch = ["trainer.max_epochs=1", "trainer.limit_train_batches=2", "trainer.limit_val_batches=1",
@@ -39,6 +40,7 @@ def test_a_checkpoint_scores_as_at_the_end_of_its_run(tiny_store: Path, tmp_path
     )
 
 
+@pytest.mark.slow
 def test_a_checkpoint_without_a_run_config_is_named(tmp_path: Path, tiny_store: Path) -> None:
     foreign = tmp_path / "foreign.ckpt"
     torch.save({"state_dict": {}}, foreign)
@@ -62,6 +64,7 @@ def test_bad_checkpoint_options_are_named(overrides: list[str], message: str, ti
         load_eval_config([o.format(ckpt=ckpt, store=tiny_store) for o in overrides])
 
 
+@pytest.mark.slow
 def test_an_out_folder_that_cannot_be_written_is_one_line(trained_checkpoint: Path, tiny_store: Path,
                                                           tmp_path: Path) -> None:  # fmt: skip
     locked = tmp_path / "read_only"

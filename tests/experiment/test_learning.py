@@ -27,6 +27,7 @@ SMALL = [
 ]  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.xfail(strict=True, raises=AssertionError, reason='issue "The detectors must learn": the models do not beat the blind prior by the margin yet')
 def test_small_models_beat_the_blind_prior_on_drives_they_never_saw(tmp_path: Path) -> None:
     main([f"demo.out={tmp_path}", *SMALL])

@@ -12,6 +12,7 @@ from lanelab.experiment.train import train
 SHORT = ["sampler=stream", "data.num_frames=1", "trainer.max_epochs=1", "trainer.limit_train_batches=2", "trainer.limit_val_batches=1"]
 
 
+@pytest.mark.slow
 def test_wandb_offline(tiny_store: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("WANDB_MODE", "offline")  # no network, no account
     monkeypatch.setenv("WANDB_SILENT", "true")

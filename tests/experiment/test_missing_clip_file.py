@@ -19,6 +19,7 @@ def store_without(tiny_store: Path, clip_id: str, folder: Path) -> tuple[Path, P
     return store, missing
 
 
+@pytest.mark.slow
 def test_lanelab_train_names_a_missing_clip_file(tiny_store: Path, tmp_path: Path) -> None:
     store, missing = store_without(tiny_store, "clip01", tmp_path)  # a train clip
     result = run(train_command(store, tmp_path / "run"))

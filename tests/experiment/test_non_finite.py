@@ -64,6 +64,7 @@ def test_a_non_finite_loss_names_the_batch_and_no_checkpoint_is_versioned(
     assert torch.load(last, weights_only=False)["global_step"] == 2 and finite_weights(last)
 
 
+@pytest.mark.slow
 def test_a_checkpoint_of_nan_weights_is_not_evaluated(tiny_store: Path, tmp_path: Path) -> None:
     content = torch.load(LEGACY, map_location="cpu", weights_only=False)
     name = next(key for key, value in content["state_dict"].items() if value.is_floating_point())

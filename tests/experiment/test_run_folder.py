@@ -5,6 +5,7 @@ run resumes in the folder. A run folder that cannot be written is one line too."
 import os
 from pathlib import Path
 
+import pytest
 from omegaconf import OmegaConf
 from train_command import read_only, run, train_command
 
@@ -14,6 +15,7 @@ from lanelab.folder_lock import lock_folder
 ONE_STEP = ["trainer.max_epochs=1", "trainer.limit_train_batches=1", "trainer.limit_val_batches=1"]
 
 
+@pytest.mark.slow
 def test_a_second_run_into_a_folder_in_use_fails_naming_its_pid(tiny_store: Path, tmp_path: Path) -> None:
     run_dir = tmp_path / "same"
     first = lock_folder(run_dir, LOCK_NAME)  # as a lanelab-train running there holds it
@@ -39,6 +41,7 @@ def test_the_other_processes_of_a_multi_process_run_share_its_folder(tmp_path: P
     first.close()
 
 
+@pytest.mark.slow
 def test_a_run_folder_that_cannot_be_written_is_one_line(tiny_store: Path, tmp_path: Path) -> None:
     locked = tmp_path / "read_only"
     result = run(read_only(locked, train_command(tiny_store, locked / "run", *ONE_STEP)))

@@ -41,6 +41,7 @@ def test_every_swept_value_composes_and_validates(sweep: str, tmp_path: Path) ->
                 assert OmegaConf.select(cfg, key) == yaml.safe_load(value)
 
 
+@pytest.mark.slow
 def test_multirun_from_another_folder_and_report(tiny_store: Path, tmp_path: Path) -> None:
     multirun, elsewhere = tmp_path / "multirun", tmp_path / "elsewhere"
     elsewhere.mkdir()

@@ -52,6 +52,7 @@ def test_schema_rejects_at_composition(override: str, key: str, tiny_store: Path
         load_train_config(tiny_overrides(tiny_store, tmp_path, override))
 
 
+@pytest.mark.slow
 def test_cli_exits_2_naming_the_key(tmp_path: Path) -> None:
     command = [sys.executable, "-m", "lanelab.experiment.train", "experiment=tiny", "+model.net.embd_dim=32",
                f"hydra.run.dir={tmp_path}"]  # fmt: skip
@@ -60,6 +61,7 @@ def test_cli_exits_2_naming_the_key(tmp_path: Path) -> None:
     assert "model.net.embd_dim" in result.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("manifest", "message"), [(None, "no clip store manifest there"), ("{not json", "cannot read the manifest")])
 def test_cli_exits_2_with_one_line_on_a_missing_or_broken_store(manifest: str | None, message: str, tmp_path: Path) -> None:
     store = tmp_path / "store"
@@ -104,6 +106,7 @@ def test_a_store_that_cannot_feed_the_run_is_named_before_the_model_is_built(
     assert [call.args[0] for call in built.call_args_list] == [cfg.data]  # the datamodule alone
 
 
+@pytest.mark.slow
 def test_a_clip_damaged_under_a_loader_worker_is_one_line_and_exit_1(tiny_store: Path, tmp_path: Path) -> None:
     """The checksums pass the store at the start; a clip read by a DataLoader worker then fails its
     page checksum: one line naming the file (PyTorch wraps a worker's error with its traceback)."""

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from tiny_store import tiny_overrides
 
 from lanelab.experiment.run_names import swept_keys
@@ -24,6 +25,7 @@ def lanelab_train(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(command, capture_output=True, text=True, timeout=240, env=env, check=False)
 
 
+@pytest.mark.slow
 def test_console_log_file_and_loggers_of_a_run_and_its_resume(tiny_store: Path, tmp_path: Path) -> None:
     run = tmp_path / "run"
     args = [*tiny_overrides(tiny_store, run)[:-1], "logger=[csv,wandb]", "trainer.max_epochs=1", "test=true",

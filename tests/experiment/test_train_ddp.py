@@ -23,6 +23,7 @@ COMMON = ["trainer.max_epochs=1", "trainer.limit_train_batches=2", "trainer.limi
 COUNTS = ("num_frames", "gt_lanes", "pred_lanes", "matched", "recall_tp", "precision_tp", "category_correct")
 
 
+@pytest.mark.slow
 def test_two_processes_match_one(tiny_store: Path, tmp_path: Path) -> None:
     ddp = train(load_train_config(tiny_overrides(tiny_store, tmp_path / "ddp", *DDP, *COMMON)))
     assert len(list((tmp_path / "ddp" / "pictures").glob("val_pictures_*.png"))) == 2
@@ -56,6 +57,7 @@ def test_every_parameter_gets_a_gradient_on_a_first_step(tiny_store: Path, tmp_p
     assert [name for name, p in module.named_parameters() if p.requires_grad and p.grad is None] == []
 
 
+@pytest.mark.slow
 def test_a_non_finite_loss_on_one_rank_stops_both(tiny_store: Path, tmp_path: Path) -> None:
     """lanelab-train with two processes (the popen launcher, as users run it): rank 1's loss turns
     NaN at its second step, rank 0's stays finite. Both stop (before, rank 0 waited forever in the

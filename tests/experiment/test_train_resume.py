@@ -3,6 +3,7 @@
 import csv
 from pathlib import Path
 
+import pytest
 import torch
 from tiny_store import tiny_overrides
 
@@ -15,6 +16,7 @@ def logged_steps(metrics_csv: Path) -> list[int]:
         return [int(row["step"]) for row in csv.DictReader(f) if row.get("train/loss")]
 
 
+@pytest.mark.slow
 def test_resume_from_last_continues_the_step_count(tiny_store: Path, tmp_path: Path) -> None:
     # 6 training steps per epoch (2 streams over 12 frames): the first run stops mid-epoch, as if killed.
     common = ["logger=csv", "sampler=stream", "data.num_frames=1", "trainer.max_epochs=10", "trainer.limit_val_batches=1"]

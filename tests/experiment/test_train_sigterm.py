@@ -7,6 +7,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import pytest
 import torch
 from test_train_resume import logged_steps
 from train_command import run, train_command
@@ -20,6 +21,7 @@ def wait_for_a_step(process: subprocess.Popen, metrics_csv: Path, timeout: float
         time.sleep(0.2)
 
 
+@pytest.mark.slow
 def test_sigterm_saves_last_says_where_exits_143_and_resumes(tiny_store: Path, tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     process = subprocess.Popen(train_command(tiny_store, run_dir, "trainer.max_epochs=50"),

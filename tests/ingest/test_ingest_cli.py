@@ -19,6 +19,7 @@ def run_ingest(*args: str) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_a_bad_log_fails_alone_and_sets_the_exit_status(tmp_path, synth_log):
     logs = tmp_path / "logs"
     logs.mkdir()

@@ -21,6 +21,7 @@ def run_ingest(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("blocked", ["a file in the way", "read-only folder"])
 def test_an_output_that_cannot_be_written_is_one_line(tmp_path, synth_log, blocked):
     if blocked == "a file in the way":

@@ -71,6 +71,7 @@ def many_logs(tmp_path, synth_log) -> Path:
     return folder
 
 
+@pytest.mark.slow
 def test_an_ingest_into_a_store_being_written_is_refused_naming_the_writer(tmp_path, synth_log):
     store = tmp_path / "store"
     holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from lanelab.store import StoreWriter; "
@@ -90,6 +91,7 @@ def test_an_ingest_into_a_store_being_written_is_refused_naming_the_writer(tmp_p
     assert not (store / "manifest.json").exists()
 
 
+@pytest.mark.slow
 def test_two_concurrent_ingests_never_lose_a_log(tmp_path, synth_log):
     store = tmp_path / "store"
     runs = []
@@ -112,6 +114,7 @@ def test_two_concurrent_ingests_never_lose_a_log(tmp_path, synth_log):
     assert len(read_manifest(store).sources) == 4 * len(listed)
 
 
+@pytest.mark.slow
 def test_kill_9_of_a_run_kills_its_workers(tmp_path, many_logs):
     run = start_ingest(f"input={many_logs}", f"output={tmp_path / 'store'}", "workers=2")
     workers: set[int] = set()
@@ -133,6 +136,7 @@ def test_kill_9_of_a_run_kills_its_workers(tmp_path, many_logs):
                 os.kill(pid, signal.SIGKILL)
 
 
+@pytest.mark.slow
 def test_ctrl_c_records_the_finished_logs_and_exits_with_one_line(tmp_path, many_logs):
     store = tmp_path / "store"
     run = start_ingest(f"input={many_logs}", f"output={store}", "workers=2")
@@ -151,6 +155,7 @@ def test_ctrl_c_records_the_finished_logs_and_exits_with_one_line(tmp_path, many
     assert listed <= {path.stem for path in (store / "clips").glob("*.parquet")}
 
 
+@pytest.mark.slow
 def test_a_damaged_clip_is_named_by_the_reader_and_verify_and_rewritten_by_a_reingest(tmp_path, synth_log):
     store = tmp_path / "store"
     ingest_into(store, synth_log("ros2"))

@@ -33,6 +33,7 @@ def tiny_module(name: str, *overrides: str) -> LaneDetectionModule:
     return instantiate(cfg.model)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["bi2lane", "bi2lane_baseline"])
 def test_the_tiny_bi2lane_learns_through_the_lane_detection_module(store, tmp_path, name):
     pl.seed_everything(0)

@@ -55,6 +55,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     return Run(scores, Path(trainer.log_dir), root / "files", module.pictures["height"])
 
 
+@pytest.mark.slow
 def test_a_tiny_model_overfits_one_clip(run):
     assert run.scores["val/f1"] >= 0.95
     assert run.scores["val/num_frames"] == 8

@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 START_A_RUN = """
 import sys
 from {module} import WandbLogger
@@ -26,6 +28,7 @@ def start_a_run(module: str, folder: Path) -> str:
     return result.stdout + result.stderr
 
 
+@pytest.mark.slow
 def test_no_anonymous_warning(tmp_path: Path) -> None:
     assert "anonymous setting" in start_a_run("lightning.pytorch.loggers", tmp_path / "lightning")  # what it replaces
     output = start_a_run("lanelab.lightning.wandb_logger", tmp_path / "lanelab")

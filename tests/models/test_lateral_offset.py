@@ -101,6 +101,7 @@ def painted(lane_x: float) -> torch.Tensor:
     return image
 
 
+@pytest.mark.slow
 def test_the_loss_teaches_the_map_to_read_the_image():
     """Two images of one road whose line lies 1 m apart: after training the dense loss on both,
     each one's read puts a line on its own marking (a map of positions alone could not)."""

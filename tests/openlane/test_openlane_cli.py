@@ -13,6 +13,7 @@ def run_openlane(*args: str) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_run_adapts_then_keeps(tiny, tmp_path):
     args = [f"annotations={tiny.annotations}", f"images={tiny.images}", f"output={tmp_path / 'store'}",
             f"scenario_lists={tiny.scenario_lists}"]

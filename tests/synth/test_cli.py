@@ -39,6 +39,7 @@ def test_bad_option_fails_before_writing(tmp_path, option, message):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_small_run_writes_logs_preview_and_resumes(tmp_path):
     out = tmp_path / "logs"
     first = run_synth(f"output_dir={out}", "num_logs=2", "workers=2", *TINY, "--preview")

@@ -33,6 +33,7 @@ def test_a_second_run_into_a_folder_being_written_is_refused(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == [LOCK_NAME, "synth_config.yaml", "synth_s0_000.mcap"]
 
 
+@pytest.mark.slow
 def test_the_command_says_so_in_one_line(tmp_path):
     out = tmp_path / "logs"
     with lock_folder(out, LOCK_NAME):
