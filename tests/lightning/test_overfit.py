@@ -21,6 +21,8 @@ from lanelab.metrics import evaluate
 from lanelab.viz import GT_COLOR, PREDICTION_COLOR
 from lanelab.viz.panels import strip_height
 
+pytestmark = pytest.mark.slow  # the three tests read one 300-step training run
+
 STEPS = 300  # windowed training, 4 windows of 2 frames a step: 150 passes over the clip
 FAST = ["model.optimizer.lr=2e-3", "model.scheduler.warmup_steps=20", "model.scheduler.min_lr=1e-4"]  # a high lr for a short run
 
@@ -55,7 +57,6 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     return Run(scores, Path(trainer.log_dir), root / "files", module.pictures["height"])
 
 
-@pytest.mark.slow
 def test_a_tiny_model_overfits_one_clip(run):
     assert run.scores["val/f1"] >= 0.95
     assert run.scores["val/num_frames"] == 8
