@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # each run is a Python process that imports Lightning and wandb
+
 START_A_RUN = """
 import sys
 from {module} import WandbLogger
@@ -28,17 +30,25 @@ def start_a_run(module: str, folder: Path) -> str:
     return result.stdout + result.stderr
 
 
-@pytest.mark.slow
-def test_no_anonymous_warning(tmp_path: Path) -> None:
-    assert "anonymous setting" in start_a_run("lightning.pytorch.loggers", tmp_path / "lightning")  # what it replaces
-    output = start_a_run("lanelab.lightning.wandb_logger", tmp_path / "lanelab")
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[str, Path]]:
+    """What an offline run started with Lightning's WandbLogger and with lanelab's prints, and
+    the folder it saves to: each started once for the tests below."""
+    root = tmp_path_factory.mktemp("wandb_runs")
+    modules = {"lightning": "lightning.pytorch.loggers", "lanelab": "lanelab.lightning.wandb_logger"}
+    return {name: (start_a_run(module, root / name), root / name) for name, module in modules.items()}
+
+
+def test_no_anonymous_warning(runs: dict[str, tuple[str, Path]]) -> None:
+    assert "anonymous setting" in runs["lightning"][0]  # what it replaces
+    output, folder = runs["lanelab"]
     assert "anonymous setting" not in output
-    assert list((tmp_path / "lanelab" / "wandb").glob("offline-run-*"))
+    assert list((folder / "wandb").glob("offline-run-*"))
 
 
-def test_an_offline_run_keeps_its_files_without_wandbs_banner(tmp_path: Path) -> None:
-    assert "Tracking run with wandb" in start_a_run("lightning.pytorch.loggers", tmp_path / "lightning")
-    output = start_a_run("lanelab.lightning.wandb_logger", tmp_path / "lanelab")
+def test_an_offline_run_keeps_its_files_without_wandbs_banner(runs: dict[str, tuple[str, Path]]) -> None:
+    assert "Tracking run with wandb" in runs["lightning"][0]
+    output, folder = runs["lanelab"]
     assert [line for line in output.splitlines() if line.startswith("wandb:") and "WARNING" not in line] == []
-    (run,) = (tmp_path / "lanelab" / "wandb").glob("offline-run-*")
+    (run,) = (folder / "wandb").glob("offline-run-*")
     assert list(run.glob("*.wandb"))  # the run's data, for `wandb sync`
