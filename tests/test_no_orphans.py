@@ -24,6 +24,7 @@ import pytest
 from descendant_reaper import alive
 
 TESTS = Path(__file__).resolve().parent
+pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="reads /proc; the reaper needs Linux's PR_SET_CHILD_SUBREAPER")
 
 SYNTH_FIXTURE = """
 import subprocess, sys
