@@ -82,6 +82,20 @@ def test_training_progress_is_log_lines_where_stdout_is_no_terminal(
     assert "\r" not in capsys.readouterr().out
 
 
+def test_training_under_a_time_cap_logs_to_its_last_step(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """With max_time (the demo's cap) Lightning counts 0 batches at the last step: the line then
+    has no percentage, and the run ends (it stopped with ZeroDivisionError once)."""
+    trainer = pl.Trainer(default_root_dir=tmp_path, max_epochs=-1, max_steps=30, max_time="00:00:05:00",
+                         val_check_interval=10, check_val_every_n_epoch=None, limit_val_batches=2,
+                         callbacks=[ProgressLines()], logger=False, enable_checkpointing=False,
+                         enable_model_summary=False, accelerator="cpu")  # fmt: skip
+    with caplog.at_level(logging.INFO, logger="lanelab.lightning.console"):
+        trainer.fit(BoringModel())
+    assert trainer.global_step == 30
+    lines = [record.getMessage() for record in caplog.records if record.name == "lanelab.lightning.console"]
+    assert sum(line.startswith("validation after step ") for line in lines) == 3
+
+
 def test_a_terminal_gets_the_rich_bar(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(sys.stdout, "isatty", lambda: True, raising=False)
     assert isinstance(progress_bar(), ProgressBar)

@@ -81,7 +81,8 @@ class ProgressLines(LightningProgressBar):
             return
         total = self.total_train_batches
         epochs = f"/{trainer.max_epochs}" if trainer.max_epochs and trainer.max_epochs > 0 else ""
-        batches = f"/{total} ({100 * (batch_idx + 1) / total:.0f} %)" if total != float("inf") else ""
+        # Lightning reports 0 or inf batches where it cannot count them (iterable datasets, a step cap)
+        batches = f"/{total} ({100 * (batch_idx + 1) / total:.0f} %)" if 0 < total < float("inf") else ""
         log.info("epoch %d%s, step %d%s%s, %.0f s", trainer.current_epoch + 1, epochs, batch_idx + 1, batches,
                  self._metrics(trainer, pl_module, "train/"), time.monotonic() - self._start)  # fmt: skip
 
