@@ -57,7 +57,7 @@ def test_an_old_checkpoint_scores_as_it_did(tiny_store: Path, tmp_path: Path) ->
     options = {"split": "test", "accelerator": "cpu", "num_pictures": 1, "picture_height": 96, "blind_prior": False,
                "prior_store": None}  # fmt: skip
     report = evaluate_checkpoint(LEGACY, tiny_store, tmp_path, **options)
-    assert report["overall"] == pytest.approx(OLD_SCORES, rel=1e-6, abs=1e-9)
+    assert report["overall"] == pytest.approx(OLD_SCORES, rel=1e-6, abs=1e-6)  # a micrometre: float rounding of reordered sums
 
 
 def test_a_bi2lane_checkpoint_from_before_offset_hidden_dim_builds_its_offset_heads(tmp_path):
