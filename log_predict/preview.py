@@ -32,8 +32,9 @@ from lanelab.geometry import base_link_to_lane
 from lanelab.lanes import Lane
 from lanelab.store.image_codec import decode_image
 from lanelab.viz import CATEGORY_COLORS, GT_COLOR, draw_polylines
-from lanelab.viz.lanes import AXIS_HEIGHT, TITLE_HEIGHT, TopView, fit_x_range, title_strip, top_view_width
+from lanelab.viz.lanes import AXIS_HEIGHT, TITLE_HEIGHT, TopView, fit_x_range, top_view_width
 from lanelab.viz.panels import categories_of, stack_rows
+from lanelab.viz.text import text_strip
 from log_predict.config import PredictConfig
 
 ROW_HEIGHT = 240  # pixels
@@ -97,7 +98,7 @@ def _row(image: ImageMsg, predicted: list[Lane], truth: list[Lane], annotations:
     view = TopView((ROW_HEIGHT - TITLE_HEIGHT, width), x_range, y_range, axis_height=AXIS_HEIGHT)
     top = view.draw(view.canvas(), truth, thickness=4, show_hidden=False, color=GT_COLOR)
     top = view.draw(top, predicted, thickness=2, show_hidden=False)
-    return np.hstack([label_panel(picture, title), np.vstack([title_strip("3D panel", width, TITLE_HEIGHT), top])])
+    return np.hstack([label_panel(picture, title), np.vstack([text_strip([("3D panel", width)], TITLE_HEIGHT), top])])
 
 
 class _Encoded:

@@ -10,7 +10,8 @@ from test_lanes import T_LANE_CAM, pixel_of, straight_lane
 from lanelab.lightning.pictures import prediction_picture
 from lanelab.viz import CATEGORY_COLORS, GT_COLOR, PREDICTION_COLOR
 from lanelab.viz.lanes import HIDDEN_COLOR, TopView
-from lanelab.viz.panels import comparison_row, fit_text, legend, stack_rows, strip_height
+from lanelab.viz.panels import comparison_row, legend, stack_rows, strip_height
+from lanelab.viz.text import fit_text
 
 HEIGHT = 480  # the test camera's own size: no scaling, so pixel_of() holds in every camera panel
 K = np.array([[400.0, 0, 320], [0, 400, 240], [0, 0, 1]])

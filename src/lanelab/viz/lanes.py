@@ -21,6 +21,7 @@ import torch
 
 from lanelab.geometry.camera import project_lane_points
 from lanelab.lanes import Lane
+from lanelab.viz.text import FONT, text_strip
 
 Color = tuple[int, int, int]
 
@@ -49,7 +50,6 @@ GT_COLOR: Color = (60, 220, 60)
 PREDICTION_COLOR: Color = (230, 40, 230)
 VISIBLE = 0.5  # label visibility from which a point is drawn as visible
 
-_FONT = cv2.FONT_HERSHEY_SIMPLEX
 _GRID, _TICK_TEXT = (55, 55, 55), (170, 170, 170)
 AXIS_HEIGHT, TITLE_HEIGHT = 18, 18  # pixels: draw_top_view's x axis and title strips
 
@@ -159,17 +159,17 @@ class TopView:
             u = int(round(self.pixels(np.array(x), np.array(self.y_range[0]))[0]))
             cv2.line(canvas, (u, 0), (u, plot_height - 1), _GRID, 1)
             label = f"{x:.0f}m"
-            (w, h), _ = cv2.getTextSize(label, _FONT, scale, 1)
+            (w, h), _ = cv2.getTextSize(label, FONT, scale, 1)
             left = min(max(u - w // 2, 0), width - w)
             if self.axis_height and all(left + w + 3 <= start or left >= stop + 3 for start, stop in placed):
-                cv2.putText(canvas, label, (left, plot_height + (self.axis_height + h) // 2), _FONT, scale,
+                cv2.putText(canvas, label, (left, plot_height + (self.axis_height + h) // 2), FONT, scale,
                             _TICK_TEXT, 1, cv2.LINE_AA)  # fmt: skip
                 placed.append((left, left + w))
         for y in np.arange(np.ceil(self.y_range[0] / 50) * 50, self.y_range[1] + 1e-6, 50.0):
             v = int(round(self.pixels(np.array(self.x_range[0]), np.array(y))[1]))
             cv2.line(canvas, (0, v), (width - 1, v), _GRID, 1)
-            (_, h), _ = cv2.getTextSize("0", _FONT, scale, 1)
-            cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, h + 1)), _FONT, scale, _TICK_TEXT, 1, cv2.LINE_AA)
+            (_, h), _ = cv2.getTextSize("0", FONT, scale, 1)
+            cv2.putText(canvas, f"{y:.0f}m", (2, max(v - 2, h + 1)), FONT, scale, _TICK_TEXT, 1, cv2.LINE_AA)
         ego = self.pixels(np.array(0.0), np.array(max(self.y_range[0], 0.0)))
         cv2.circle(canvas, (int(ego[0]), int(min(ego[1], plot_height - 4))), 3, (0, 255, 0), -1)
         return canvas
@@ -246,13 +246,4 @@ def draw_top_view(
     canvas = view.draw(view.canvas(), lanes)
     if not title:
         return canvas
-    return np.vstack([title_strip(title, size[1], title_height), canvas])
-
-
-def title_strip(title: str, width: int, height: int) -> np.ndarray:
-    """A dark strip (height, width, 3) with title at its left, in the top view's label font."""
-    strip = np.full((height, width, 3), 15, np.uint8)
-    scale = label_scale(height)
-    (_, h), _ = cv2.getTextSize(title, _FONT, scale, 1)
-    cv2.putText(strip, title, (4, (height + h) // 2), _FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
-    return strip
+    return np.vstack([text_strip([(title, size[1])], title_height), canvas])

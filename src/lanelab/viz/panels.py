@@ -31,43 +31,14 @@ from lanelab.viz.lanes import (
     category_color,
     draw_lanes_on_image,
 )
+from lanelab.viz.text import FONT, SMALLEST_SCALE, STRIP_COLOR, TEXT_COLOR, text_strip
 
 PANEL_CAPTIONS = ("ground truth", "prediction", "GT vs prediction", "top view")
-_FONT = cv2.FONT_HERSHEY_SIMPLEX
-_TEXT, _STRIP = (235, 235, 235), (25, 25, 25)
-_SMALLEST_SCALE = 0.3  # below this Hershey text is unreadable: shorten the text instead
 
 
 def strip_height(height: int) -> int:
     """Pixels of a text strip over a row of panels of `height` pixels."""
     return int(np.clip(round(height * 0.06), 12, 22))
-
-
-def fit_text(text: str, width: int, height: int) -> tuple[str, float]:
-    """text and a font scale such that it fits width x height pixels, shortened in the middle
-    (".." standing for what was left out) where the smallest readable scale is too large."""
-    scale = max((height - 6) / 30, _SMALLEST_SCALE)  # Hershey simplex: 22 px of letters at scale 1, and a margin
-    room = width - 6
-    text_width = cv2.getTextSize(text, _FONT, scale, 1)[0][0]
-    if text_width > room:
-        scale = max(scale * room / text_width, _SMALLEST_SCALE)
-    shown, keep = text, len(text)
-    while keep > 0 and cv2.getTextSize(shown, _FONT, scale, 1)[0][0] > room:
-        keep -= 1
-        shown = text[: (keep + 1) // 2] + ".." + text[len(text) - keep // 2 :]
-    return shown, scale
-
-
-def text_strip(texts: Sequence[tuple[str, int]], height: int) -> np.ndarray:
-    """A strip (height, sum of widths, 3) with each text in its own column of the given width."""
-    strip = np.full((height, sum(width for _, width in texts), 3), _STRIP, np.uint8)
-    left = 0
-    for text, width in texts:
-        shown, scale = fit_text(text, width, height)
-        (_, h), _ = cv2.getTextSize(shown, _FONT, scale, 1)
-        cv2.putText(strip, shown, (left + 3, (height + h) // 2), _FONT, scale, _TEXT, 1, cv2.LINE_AA)
-        left += width
-    return strip
 
 
 def comparison_row(
@@ -125,25 +96,25 @@ def legend(width: int, categories: Iterable[int], height: int, kinds: Sequence[s
     `kinds` (of :data:`KINDS`: ground truth, prediction, the hidden-part line), then each category
     of `categories` (its colour and OpenLane name). height: the row height it goes under (sizes the text)."""
     line_height = strip_height(height) + 4
-    scale = max((line_height - 10) / 30, _SMALLEST_SCALE)
+    scale = max((line_height - 10) / 30, SMALLEST_SCALE)
     entries: list[tuple[str, Color, int]] = [(kind, *KINDS[kind]) for kind in kinds]  # name, colour, line width
     entries += [(LANE_CATEGORY_NAMES.get(c, f"category {c}"), category_color(c), 3) for c in sorted(set(categories))]
     swatch = 2 * line_height
     lines: list[list[tuple[int, tuple[str, Color, int]]]] = [[]]  # per line: (left, entry)
     left = 4
     for entry in entries:
-        entry_width = swatch + 6 + cv2.getTextSize(entry[0], _FONT, scale, 1)[0][0] + 14
+        entry_width = swatch + 6 + cv2.getTextSize(entry[0], FONT, scale, 1)[0][0] + 14
         if left + entry_width > width and lines[-1]:
             lines.append([])
             left = 4
         lines[-1].append((left, entry))
         left += entry_width
-    canvas = np.full((line_height * len(lines) + 4, width, 3), _STRIP, np.uint8)
+    canvas = np.full((line_height * len(lines) + 4, width, 3), STRIP_COLOR, np.uint8)
     for row, line in enumerate(lines):
         middle = 2 + row * line_height + line_height // 2
         for left, (name, color, thickness) in line:
             cv2.line(canvas, (left, middle), (left + swatch, middle), color, thickness)  # horizontal: no anti-aliasing
-            cv2.putText(canvas, name, (left + swatch + 6, middle + round(8 * scale)), _FONT, scale, _TEXT, 1,
+            cv2.putText(canvas, name, (left + swatch + 6, middle + round(8 * scale)), FONT, scale, TEXT_COLOR, 1,
                         cv2.LINE_AA)  # fmt: skip
     return canvas
 
