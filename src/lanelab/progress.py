@@ -25,13 +25,20 @@ def is_terminal(stream: TextIO) -> bool:
     return bool(getattr(stream, "isatty", lambda: False)())
 
 
+def countable(total: float | None) -> float | None:
+    """total where it counts the work, None where it does not (unknown, 0 or inf: Lightning's
+    batch counts where it cannot count them, e.g. an iterable dataset or the last step under
+    ``max_time``)."""
+    return total if total and total != float("inf") else None
+
+
 class LineTimer:
     """When a plain progress line is due: the work done has reached the next 1 / :data:`STEPS`
     of total (if known), or interval_s have gone by since the last line."""
 
     def __init__(self, total: float | None, interval_s: float = INTERVAL_S,
                  clock: Callable[[], float] = time.monotonic) -> None:  # fmt: skip
-        self.total = total if total and total != float("inf") else None
+        self.total = countable(total)
         self.interval_s, self.clock = interval_s, clock
         self._last_time, self._next_step = clock(), 1
 

@@ -33,7 +33,7 @@ from lightning.pytorch.callbacks import ProgressBar as LightningProgressBar
 from lightning.pytorch.callbacks import RichProgressBar
 from lightning.pytorch.utilities.model_summary.model_summary import _format_summary_table
 
-from lanelab.progress import LineTimer, is_terminal
+from lanelab.progress import LineTimer, countable, is_terminal
 
 LIGHTNING_LOGGERS = ("lightning", "lightning.pytorch", "lightning.fabric")
 NOISE = (
@@ -79,10 +79,9 @@ class ProgressLines(LightningProgressBar):
                            batch_idx: int) -> None:  # fmt: skip
         if not (self._enabled and trainer.is_global_zero and self._timer.due(batch_idx + 1)):
             return
-        total = self.total_train_batches
+        total = countable(self.total_train_batches)
         epochs = f"/{trainer.max_epochs}" if trainer.max_epochs and trainer.max_epochs > 0 else ""
-        # Lightning reports 0 or inf batches where it cannot count them (iterable datasets, a step cap)
-        batches = f"/{total} ({100 * (batch_idx + 1) / total:.0f} %)" if 0 < total < float("inf") else ""
+        batches = f"/{total} ({100 * (batch_idx + 1) / total:.0f} %)" if total is not None else ""
         log.info("epoch %d%s, step %d%s%s, %.0f s", trainer.current_epoch + 1, epochs, batch_idx + 1, batches,
                  self._metrics(trainer, pl_module, "train/"), time.monotonic() - self._start)  # fmt: skip
 
