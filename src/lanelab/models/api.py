@@ -69,8 +69,9 @@ class LaneDetector(Protocol):
 
     def forward(self, batch: Mapping[str, Any]) -> DetectionOutputs:
         """The current (last) frame's outputs for a batch of F-frame windows (keys as above;
-        the ground truth is not read). A detector without memory of earlier frames looks at
-        the current frame alone."""
+        the ground truth is read only in training, by a detector that takes it as input there,
+        as SparseLaneSTP's query denoising does). A detector without memory of earlier frames
+        looks at the current frame alone."""
         ...
 
     def step(self, frame: Mapping[str, Tensor]) -> DetectionOutputs:

@@ -58,12 +58,13 @@ class DecoderLayer(nn.Module):
         K: Tensor,
         T_lane_cam: Tensor,
         image_size: tuple[int, int],
+        line_mask: Tensor | None = None,
     ) -> Tensor:
         """queries, query_pos (B, N, M, C); points (B, N, M, 4) metres; memory / memory_pos
-        (B, K, C) or None; features, K, T_lane_cam, image_size: see DeformableCrossAttention.
-        Returns (B, N, M, C)."""
+        (B, K, C) or None; features, K, T_lane_cam, image_size: see DeformableCrossAttention;
+        line_mask (B, N) bool, False for padded lines (None: all real). Returns (B, N, M, C)."""
         B, N, M, C = queries.shape
-        attended = self.self_attention(queries, query_pos, points, memory, memory_pos, None)
+        attended = self.self_attention(queries, query_pos, points, memory, memory_pos, line_mask)
         queries = self.norms[0](queries + self.dropout(attended))
         sampled = self.cross_attention(
             (queries + query_pos).flatten(1, 2), points[..., :3].flatten(1, 2), features, K, T_lane_cam, image_size
@@ -100,11 +101,13 @@ class LaneDecoder(nn.Module):
         K: Tensor,
         T_lane_cam: Tensor,
         image_size: tuple[int, int],
+        line_mask: Tensor | None = None,
     ) -> tuple[Tensor, Tensor, Tensor]:
         """Run all layers.
 
         queries: 0Q (B, N, M, C); logits: initial pre-sigmoid (x, z, v) (B, N, M, 3);
-        memory: the memory queue's state, or None without temporal fusion.
+        memory: the memory queue's state, or None without temporal fusion; line_mask (B, N) bool,
+        False for padded lines, which no line attends to (None: all real).
         Returns per-layer control points (L, B, N, M, 4) and class logits (L, B, N, K + 1),
         and the last layer's queries (B, N, M, C) (what the memory queue stores).
         """
@@ -117,7 +120,7 @@ class LaneDecoder(nn.Module):
             if index > 0:  # the points of the last layer's logits, detached as they are
                 logits, points = logits.detach(), all_points[-1].detach()
             query_pos = self.positional_encoding(self.head.normalise(points))
-            queries = layer(queries, query_pos, points, memory, memory_pos, features, K, T_lane_cam, image_size)
+            queries = layer(queries, query_pos, points, memory, memory_pos, features, K, T_lane_cam, image_size, line_mask)
             logits = self.head.refine(queries, logits)
             if self.searches is not None:
                 points = self.head.control_points(logits)

@@ -116,6 +116,13 @@ class LaneHead(nn.Module):
         unit = logits.to(torch.promote_types(logits.dtype, torch.float32)).sigmoid()
         return torch.addcmul(self.unit_shift, unit.index_select(-1, self.unit_channels), self.unit_scale)
 
+    def point_logits(self, points: Tensor) -> Tensor:
+        """Control points (..., M, 4) = (x, y, z, v), metres -> the pre-sigmoid (x, z, v) logits
+        (..., M, 3) that ``control_points`` maps back to them, each clamped into its range."""
+        channels = (0, 2, 3)
+        unit = (points[..., channels] - self.unit_shift[:, channels]) / self.unit_scale[list(channels)]
+        return torch.logit(unit.clamp(1e-4, 1 - 1e-4))
+
     def normalise(self, points: Tensor) -> Tensor:
         """Points (..., 4) = (x, y, z, v) in metres -> each coordinate mapped by its range to
         [0, 1] (v as is), the input of the positional encoding. Propagated memory points may

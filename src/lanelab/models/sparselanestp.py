@@ -44,11 +44,13 @@ on at the tiny size the demo trains (conf/model_size/tiny).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import fields
 from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor, nn
 
+from lanelab.models.api import TARGET_KEYS
 from lanelab.models.backbone import ResNet
 from lanelab.models.cuda_graph import CUDAGraphed
 from lanelab.models.decoder import DecoderLayer, LaneDecoder
@@ -58,8 +60,9 @@ from lanelab.models.ground_encoding import GroundPositionalEncoding
 from lanelab.models.heads import LaneHead
 from lanelab.models.lateral_offset import LateralOffsetReader
 from lanelab.models.lateral_search import LateralSearch
-from lanelab.models.memory_queue import MemoryQueue, QueueState
+from lanelab.models.memory_queue import MemoryQueue, MemoryState, QueueState
 from lanelab.models.positional_encoding import PointPositionalEncoding
+from lanelab.models.query_denoising import QueryDenoising
 from lanelab.models.query_init import LaneQueryGenerator
 from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
 
@@ -105,6 +108,8 @@ class SparseLaneSTP(nn.Module):
     layer, on the finest feature level; null: none.
     lateral_offset: {stride (4 or 8), hidden, read_range, num_reads, iterations} of a
     LateralOffsetReader whose map moves the initial points onto the lanes it reads; null: none.
+    denoising: {groups, max_shift (metres), max_angle (degrees)} of the QueryDenoising that,
+    in training, also decodes noised ground-truth lanes (models.query_denoising); null: none.
     cuda_graphs: streaming inference on a GPU replays each step from a CUDA graph (the same
     results, without the launch cost of its ~2,000 small kernels); not with attention="sparse",
     whose key band is sized from the data.
@@ -145,6 +150,7 @@ class SparseLaneSTP(nn.Module):
         dca_content_weights: bool,
         lateral_search: Mapping[str, float] | None,
         lateral_offset: Mapping[str, Any] | None = None,
+        denoising: Mapping[str, Any] | None = None,
         cuda_graphs: bool = True,
     ) -> None:
         super().__init__()
@@ -194,6 +200,7 @@ class SparseLaneSTP(nn.Module):
         )
         if self.reader is not None:  # the spline at the reader's y (S, M), made once rather than per step
             self.register_buffer("read_basis", self.head.curves.bases(self.reader.read_y)[0], persistent=False)
+        self.denoising = None if denoising is None else QueryDenoising(embed_dim, num_points, **denoising)
         self.num_memory_frames, self.num_memory_lines = num_memory_frames, num_memory_lines
         self.embed_dim, self.num_points = embed_dim, num_points
         self._stream = self.new_memory()  # the streaming state
@@ -211,12 +218,17 @@ class SparseLaneSTP(nn.Module):
         batch: images (B, F, 3, H, W), K (B, F, 3, 3), T_lane_cam (B, F, 4, 4),
         T_world_lane (B, F, 4, 4), valid (B, F) bool (False: padding before a clip start);
         K in pixels of the images as given (after any resizing).
-        Returns the current (last) frame's outputs (see ``step``). With all_frames, every
+        Returns the current (last) frame's outputs (see ``step``); in training with query
+        denoising, also "denoising", the noised lanes' (``_denoise``), for which the batch's
+        ground truth (TARGET_KEYS) is read. With all_frames, every
         per-frame output gets a frame axis after the batch axis (B, F, ...), "memory" is left out,
         and every frame is differentiable; otherwise the earlier frames only fill the memory,
         without gradient. Without a memory (num_memory_frames = 0) the earlier frames cannot
         change the current frame's outputs, and only the current frame is run.
         """
+        targets = None
+        if self.denoising is not None and self.training and not all_frames:
+            targets = {key: batch[key] for key in TARGET_KEYS}
         if self.num_memory_frames == 0 and not all_frames:
             batch = {key: batch[key][:, -1:] for key in ("images", "K", "T_lane_cam", "T_world_lane", "valid")}
         images, valid = batch["images"], batch["valid"]
@@ -238,7 +250,7 @@ class SparseLaneSTP(nn.Module):
                     self._decode(
                         encoded[f],
                         batch["K"][:, f], batch["T_lane_cam"][:, f], batch["T_world_lane"][:, f],
-                        tuple(images.shape[-2:]), memory,
+                        tuple(images.shape[-2:]), memory, targets if f == F - 1 else None,
                     )  # fmt: skip
                 )
         if not all_frames:
@@ -384,15 +396,17 @@ class SparseLaneSTP(nn.Module):
         T_world_lane: Tensor,
         image_size: tuple[int, int],
         memory: MemoryQueue,
+        targets: Mapping[str, Tensor] | None = None,
     ) -> dict[str, Any]:
-        """Decode one frame against the memory, then push its most confident lines."""
+        """Decode one frame against the memory, then push its most confident lines; with targets
+        (the frame's ground truth), decode its noised lanes too."""
         state = memory.read(T_world_lane)
         points, logits, queries = self.decoder(
             encoded.queries, encoded.logits, state, encoded.features, K, T_lane_cam, image_size
         )
         # Confidence = the best foreground class probability (DETR's score). The queue detaches.
         memory.push(queries, points[-1], logits[-1].softmax(-1)[..., :-1].amax(-1), T_world_lane)
-        return {
+        outputs = {
             "points": points,
             "logits": logits,
             "init_points": self.head.control_points(encoded.logits),
@@ -401,6 +415,39 @@ class SparseLaneSTP(nn.Module):
             "anchors": self.anchors(),
             "memory": state,
         }
+        if targets is not None and targets["gt_mask"].shape[1] > 0:  # a batch without lanes has none to noise
+            outputs["denoising"] = self._denoise(encoded, state, targets, K, T_lane_cam, image_size)
+        return outputs
+
+    def _denoise(
+        self,
+        encoded: _Encoded,
+        memory: MemoryState | None,
+        targets: Mapping[str, Tensor],
+        K: Tensor,
+        T_lane_cam: Tensor,
+        image_size: tuple[int, int],
+    ) -> dict[str, Tensor]:
+        """The frame's ground-truth lanes (G per sample), noised R times, through the decoder on
+        the same image and memory as the detection's lines, in a pass of their own.
+        Returns points (L, B, R G, M, 4) and logits (L, B, R G, K + 1): line r G + g is the r-th
+        noised copy of lane g."""
+        R = self.denoising.groups
+        points, line_mask = self.denoising.noised_points(targets, self.head.y)
+        BR, G = line_mask.shape
+        queries = self.denoising.queries(self.query_generator.point_embedding.weight, (BR, G))
+
+        def repeat(tensor: Tensor) -> Tensor:  # one batch element per group
+            return tensor.repeat_interleave(R, 0)
+
+        if memory is not None:
+            memory = MemoryState(**{field.name: repeat(getattr(memory, field.name)) for field in fields(MemoryState)})
+        all_points, all_logits, _ = self.decoder(
+            queries, self.head.point_logits(points), memory, [repeat(level) for level in encoded.features],
+            repeat(K), repeat(T_lane_cam), image_size, line_mask,
+        )  # fmt: skip
+        L, B = all_points.shape[0], BR // R
+        return {"points": all_points.reshape(L, B, R * G, *all_points.shape[-2:]), "logits": all_logits.reshape(L, B, R * G, -1)}
 
 
 def _frame_axis(key: str) -> int:

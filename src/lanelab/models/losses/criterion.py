@@ -5,6 +5,8 @@ the predicted curves are sampled at the ground truth's y grid (curve arguments e
 Hungarian matcher pairs proposals with lanes, and the detection losses follow (eq. 22-24;
 unmatched proposals are background). The spatial priors act on the matched lines of every
 layer, the temporal prior on ``outputs["temporal"]`` (the current prediction and the memory).
+Noised ground-truth lanes (query denoising, models.query_denoising) are their own lanes' targets
+without matching; their "denoise" term is their cls + reg + vis, weighted as the matched lines'.
 Every term is summed over layers and weighted by ``weights``; terms of weight 0 are skipped.
 """
 
@@ -21,7 +23,7 @@ from lanelab.models.losses.detection import focal_loss, regression_loss, visibil
 from lanelab.models.losses.priors import curvature_excess, parallelism_and_surface, temporal_consistency
 from lanelab.models.matcher import HungarianMatcher
 
-TERMS = ("cls", "reg", "vis", "parallel", "surface", "curvature", "temporal")
+TERMS = ("cls", "reg", "vis", "parallel", "surface", "curvature", "temporal", "denoise")
 
 
 class SparseLaneSTPLoss(nn.Module):
@@ -57,8 +59,10 @@ class SparseLaneSTPLoss(nn.Module):
 
     def forward(self, outputs: Mapping, targets: Mapping[str, Tensor]) -> dict[str, Tensor]:
         """outputs: {"layers": [{"control_points": (B, N, M, 4), "logits": (B, N, K + 1)}, ...],
-        optionally "temporal": {"current": (B, N, M, 4), "propagated_memory": MemoryState | None}
-        and "anchors": the lines' lateral anchors (N,) (for HungarianMatcher(match_on="anchors"));
+        optionally "temporal": {"current": (B, N, M, 4), "propagated_memory": MemoryState | None},
+        "anchors": the lines' lateral anchors (N,) (for HungarianMatcher(match_on="anchors")) and
+        "denoising": {"points": (L, B, R G, M, 4), "logits": (L, B, R G, K + 1)}, R noised copies
+        of the G lanes (line r G + g is lane g's);
         targets: the collated dataset batch: gt_y (S,) or (B, S), gt_x / gt_z / gt_vis (B, G, S),
         gt_category (B, G) OpenLane ids, gt_mask (B, G).
         Returns every term of TERMS (summed over layers), "total", the weighted sum, and
@@ -77,8 +81,27 @@ class SparseLaneSTPLoss(nn.Module):
             losses["temporal"] = temporal_consistency(
                 temporal["current"], temporal["propagated_memory"], self.temporal_alpha, self.temporal_max_distance
             )
+        if self.weights["denoise"] and outputs.get("denoising") is not None:
+            losses["denoise"] = self._denoising_loss(outputs["denoising"], bases, targets)
         losses["total"] = sum(self.weights[term] * losses[term] for term in TERMS)
         return {**losses, "matches": matches}
+
+    def _denoising_loss(self, denoising: Mapping[str, Tensor], bases: tuple[Tensor, Tensor], targets: Mapping[str, Tensor]) -> Tensor:
+        """The noised lanes' detection losses against the lanes they were made from, summed over
+        layers, each term weighted as the matched lines' are."""
+        copies = denoising["points"].shape[2] // targets["gt_mask"].shape[1]
+        mask = targets["gt_mask"].repeat(1, copies)
+        gt_x, gt_z, gt_vis = (targets[key].repeat(1, copies, 1)[mask].to(denoising["points"]) for key in ("gt_x", "gt_z", "gt_vis"))
+        target = category_to_index(targets["gt_category"].repeat(1, copies)[mask])
+        total = denoising["points"].new_zeros(())
+        for points, logits in zip(denoising["points"], denoising["logits"]):
+            curves = sample_lanes(points, bases)[mask]  # (P, S, 4)
+            total = total + (
+                self.weights["cls"] * focal_loss(logits[mask], target, self.gamma)
+                + self.weights["reg"] * regression_loss(curves, gt_x, gt_z, gt_vis, gt_vis.sum().clamp(min=1))
+                + self.weights["vis"] * visibility_loss(curves, gt_vis, max(gt_vis.numel(), 1))
+            )
+        return total
 
     def _layer_losses(
         self, points: Tensor, logits: Tensor, bases: tuple[Tensor, Tensor], targets: Mapping[str, Tensor],

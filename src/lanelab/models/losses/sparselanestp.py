@@ -29,15 +29,20 @@ def detection_inputs(outputs: Mapping[str, Any], frames: Tensor) -> dict[str, An
     """SparseLaneSTPLoss's input for the batch elements selected by frames (B,) bool: every
     decoder layer's control points (B', N, M, 4) and logits (B', N, K + 1), and for the
     temporal regulariser the last layer's points with the memory the frame attended to; the
-    lines' anchors (the matcher's, when it matches on anchors)."""
+    lines' anchors (the matcher's, when it matches on anchors); the noised lanes' outputs, where
+    the model decoded some (query denoising)."""
     points, logits = outputs["points"][:, frames], outputs["logits"][:, frames]
     memory = outputs["memory"]
     if memory is not None:
         memory = MemoryState(**{field.name: getattr(memory, field.name)[frames] for field in fields(MemoryState)})
+    denoising = outputs.get("denoising")
+    if denoising is not None:
+        denoising = {key: value[:, frames] for key, value in denoising.items()}
     return {
         "layers": [{"control_points": p, "logits": c} for p, c in zip(points, logits)],
         "temporal": {"current": points[-1], "propagated_memory": memory},
         "anchors": outputs.get("anchors"),
+        "denoising": denoising,
     }
 
 
@@ -62,6 +67,7 @@ class SparseLaneSTPCriterion(nn.Module):
         if not bool(scored.any()):
             # Nothing to learn from; a zero that reaches the outputs keeps DDP ranks in step.
             used = [outputs[key] for key in ("points", "logits", "masks", "offsets") if outputs.get(key) is not None]
+            used += list((outputs.get("denoising") or {}).values())
             return {"total": sum(tensor.sum() * 0.0 for tensor in used)}
         targets = {key: batch[key][scored] for key in TARGET_KEYS}
         losses = self.detection(detection_inputs(outputs, scored), targets)
