@@ -34,7 +34,7 @@ from lanelab.deploy.export import (
 )
 from lanelab.deploy.export_cli import run
 from lanelab.deploy.trained import load_trained
-from lanelab.models.explicit_state import ExplicitStateStep
+from lanelab.deploy.explicit_state import ExplicitStateStep
 from lanelab.models.sparselanestp import SparseLaneSTP
 from log_predict.config import load_predict_config
 
