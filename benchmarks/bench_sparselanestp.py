@@ -42,8 +42,8 @@ import torch
 
 from lanelab.geometry import make_transform
 from lanelab.models.categories import NUM_LANE_CATEGORIES
-from lanelab.runtime.operator_log import OperatorLog
 from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.runtime.operator_log import OperatorLog
 
 _COMMON = dict(
     dropout=0.1, attention="auto", use_sla=True, use_pna=True, use_tca=True, pna_neighbors=2,

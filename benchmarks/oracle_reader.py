@@ -30,8 +30,8 @@ from torch import Tensor
 
 from lanelab.experiment.build import build_run
 from lanelab.experiment.config import load_train_config
-from lanelab.models.sparselanestp.lateral_offset_loss import lateral_offset_targets
 from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.models.sparselanestp.lateral_offset_loss import lateral_offset_targets
 
 SHIFT_M = 1.5
 NEAR_M = (5.0, 30.0)

@@ -52,11 +52,11 @@ from torch import Tensor, nn
 
 from lanelab.models.bi2lane import Bi2Lane
 from lanelab.models.bi2lane.frame_cache import FrameState
-from lanelab.models.sparselanestp.memory_queue import QueueState
-from lanelab.runtime.ranking import recording_picks
 from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.models.sparselanestp.memory_queue import QueueState
 from lanelab.models.sparselanestp.spatio_temporal_attention import SpatioTemporalAttention
 from lanelab.models.sparselanestp.sta_masks import PNA_TIE_MARGIN_M
+from lanelab.runtime.ranking import recording_picks
 
 INPUT_NAMES = ("images", "K", "T_lane_cam", "T_world_lane", "reset")
 OUTPUT_NAMES = ("points", "logits", "lanes")

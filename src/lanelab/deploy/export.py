@@ -38,15 +38,15 @@ import torch
 from torch import Tensor
 
 from lanelab.atomic_file import atomic_output
+from lanelab.deploy.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
 from lanelab.deploy.trained import TrainedDetector
 from lanelab.geometry import make_transform
 from lanelab.lanes import LANE_CATEGORY_IDS
 from lanelab.models.bi2lane import Bi2Lane
 from lanelab.models.bi2lane.frame_cache import FrameState
-from lanelab.deploy.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
+from lanelab.models.sparselanestp import SparseLaneSTP
 from lanelab.models.sparselanestp.memory_queue import QueueState
 from lanelab.runtime.ranking import forcing_picks
-from lanelab.models.sparselanestp import SparseLaneSTP
 
 METADATA_KEY = "lanelab"
 EXPORTABLE = (SparseLaneSTP, Bi2Lane)

@@ -1,7 +1,7 @@
 import torch
 
-from lanelab.models.sparselanestp.lateral_search import LateralSearch
 from lanelab.models.sparselanestp.instance_mask_loss import lane_masks
+from lanelab.models.sparselanestp.lateral_search import LateralSearch
 
 H, W, C = 96, 128, 4
 K = torch.tensor([[100.0, 0.0, 64.0], [0.0, 100.0, 48.0], [0.0, 0.0, 1.0]])[None]

@@ -37,8 +37,8 @@ from torch import Tensor, nn
 from lanelab.geometry import interpolate_in_y
 from lanelab.geometry.curves import LaneCurves
 from lanelab.models.api import TARGET_KEYS, scored_frames
-from lanelab.models.categories import category_to_index
 from lanelab.models.bi2lane.bev_segmentation_loss import bev_segmentation_loss
+from lanelab.models.categories import category_to_index
 from lanelab.models.parts.detection_losses import focal_loss, regression_loss, visibility_loss
 from lanelab.models.parts.matcher import HungarianMatcher
 

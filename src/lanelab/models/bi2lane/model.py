@@ -36,15 +36,15 @@ from torch import Tensor, nn
 
 from lanelab.geometry import control_point_y
 from lanelab.geometry.curves import LaneCurves
-from lanelab.models.parts.backbone import ResNet
 from lanelab.models.bi2lane.aggregation import BiLevelAggregation
 from lanelab.models.bi2lane.anchors import anchor_families
 from lanelab.models.bi2lane.bev import BEVSegmentation
 from lanelab.models.bi2lane.frame_cache import FrameCache, FrameState
 from lanelab.models.bi2lane.refinement import TemporalRefinement, refine
-from lanelab.runtime.cuda_graph import CUDAGraphed
+from lanelab.models.parts.backbone import ResNet
 from lanelab.models.parts.fpn import FPN
 from lanelab.models.parts.heads import mlp
+from lanelab.runtime.cuda_graph import CUDAGraphed
 
 DIRECTIONS = ("forward", "reverse", "bidirectional")
 # The FPN reads C3..C5 and gives one level, stride 8.

@@ -19,8 +19,8 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor, nn
 
-from lanelab.models.sparselanestp.deformable_attention import DeformableCrossAttention
 from lanelab.models.parts.heads import LaneHead
+from lanelab.models.sparselanestp.deformable_attention import DeformableCrossAttention
 from lanelab.models.sparselanestp.lateral_search import LateralSearch
 from lanelab.models.sparselanestp.memory_queue import MemoryState
 from lanelab.models.sparselanestp.positional_encoding import PointPositionalEncoding

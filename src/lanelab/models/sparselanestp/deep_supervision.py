@@ -18,8 +18,8 @@ from torch import Tensor, nn
 from lanelab.geometry.curves import LaneCurves, sample_lanes
 from lanelab.models.categories import category_to_index
 from lanelab.models.parts.detection_losses import focal_loss, regression_loss, visibility_loss
-from lanelab.models.sparselanestp.priors import curvature_excess, parallelism_and_surface, temporal_consistency
 from lanelab.models.parts.matcher import HungarianMatcher
+from lanelab.models.sparselanestp.priors import curvature_excess, parallelism_and_surface, temporal_consistency
 
 TERMS = ("cls", "reg", "vis", "parallel", "surface", "curvature", "temporal")
 

@@ -50,18 +50,18 @@ import torch
 from torch import Tensor, nn
 
 from lanelab.models.parts.backbone import ResNet
-from lanelab.runtime.cuda_graph import CUDAGraphed
+from lanelab.models.parts.fpn import FPN
+from lanelab.models.parts.heads import LaneHead
 from lanelab.models.sparselanestp.decoder import DecoderLayer, LaneDecoder
 from lanelab.models.sparselanestp.deformable_attention import DeformableCrossAttention
-from lanelab.models.parts.fpn import FPN
 from lanelab.models.sparselanestp.ground_encoding import GroundPositionalEncoding
-from lanelab.models.parts.heads import LaneHead
 from lanelab.models.sparselanestp.lateral_offset import LateralOffsetReader
 from lanelab.models.sparselanestp.lateral_search import LateralSearch
 from lanelab.models.sparselanestp.memory_queue import MemoryQueue, QueueState
 from lanelab.models.sparselanestp.positional_encoding import PointPositionalEncoding
 from lanelab.models.sparselanestp.query_init import LaneQueryGenerator
 from lanelab.models.sparselanestp.spatio_temporal_attention import SpatioTemporalAttention
+from lanelab.runtime.cuda_graph import CUDAGraphed
 
 # LATR's neck reads C3..C5; the query generator reads the finest FPN level (stride 8). A stride-4
 # lateral-offset map also reads C2.
