@@ -15,7 +15,7 @@ On the frames that count (:func:`~lanelab.models.api.scored_frames`):
   the ground truth's samples (the shared ``regression_loss``);
 - "vis" (eq. 13, last sum): L1 between predicted and true visibility (``visibility="l1"``, as
   printed) or the shared binary cross-entropy (``"bce"``);
-- "seg" (eq. 14): the auxiliary BEV lane segmentation (:mod:`.bev_segmentation`);
+- "seg" (eq. 14): the auxiliary BEV lane segmentation (:mod:`.bev_segmentation_loss`);
 - "refine": the lanes each BDTR step detected in the history frames (outputs "detections", moved
   into the current frame), visibility-weighted L1 of x and z against the paired lane. The paper
   is silent on how the refinement offsets (eq. 2) learn; as Anchor3DLane supervises every stage

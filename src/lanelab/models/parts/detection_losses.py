@@ -1,4 +1,5 @@
-"""Detection losses of SparseLaneSTP, supplementary B (eq. 22-24).
+"""Detection losses of SparseLaneSTP, supplementary B (eq. 22-24), shared with Bi²Lane's criterion
+(:mod:`lanelab.models.bi2lane.criterion`: its classification, eq. 12, and regression, eq. 13).
 
 The classification is a mean over the N proposals of every image (eq. 22). Eq. 23-24 are sums
 over the matched lines' ground-truth samples; the paper divides them by N, which makes their
