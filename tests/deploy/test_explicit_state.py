@@ -1,15 +1,21 @@
 """The streaming step with its memory as explicit tensors equals ``step()`` (before any export),
 for SparseLaneSTP's memory queue and Bi²Lane's frame cache."""
 
+import sys
+from pathlib import Path
+
 import pytest
 import torch
-from test_bi2lane import build as build_bi2lane
-from test_bi2lane import tiny_net  # noqa: F401 (a fixture)
-from test_bi2lane import window_batch
-from test_sparselanestp import B, F, H, W, frame, model, window
 
 from lanelab.deploy.explicit_state import ExplicitStateStep, settle_ties, state_names
 from lanelab.models.sparselanestp.memory_queue import MemoryQueue
+
+MODEL_TESTS = Path(__file__).resolve().parents[1] / "models"
+sys.path[:0] = [str(MODEL_TESTS / "bi2lane"), str(MODEL_TESTS / "sparselanestp")]  # the detectors' test builds
+from test_bi2lane import build as build_bi2lane  # noqa: E402
+from test_bi2lane import tiny_net  # noqa: E402, F401 (a fixture)
+from test_bi2lane import window_batch  # noqa: E402
+from test_sparselanestp import B, F, H, W, frame, model, window  # noqa: E402
 
 
 def test_explicit_state_steps_as_step_does_resets_included() -> None:

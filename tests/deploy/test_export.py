@@ -38,7 +38,7 @@ from lanelab.deploy.trained import load_trained
 from lanelab.models.sparselanestp import SparseLaneSTP
 from log_predict.config import load_predict_config
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models" / "sparselanestp"))
 from test_sparselanestp import BASELINE  # noqa: E402
 
 TOLERANCE = 1e-4

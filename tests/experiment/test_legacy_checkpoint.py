@@ -14,7 +14,7 @@ data/<model>_7337d6f.ckpt were written by lanelab-train at commit 7337d6f, the l
 models were laid out by model (issue 41): the tiny experiment with ``model=<model>``, shrunk
 further (backbone_width=2, embed_dim=8, ...: see their run configs), one epoch of two steps on
 tiny_store.build_store's store, stripped to their state dict and run config, which names the
-``_target_``\s of then (``lanelab.models.SparseLaneSTP``, ``lanelab.models.losses.*``, ...), which
+``_target_`` classes of then (``lanelab.models.SparseLaneSTP``, ``lanelab.models.losses.*``, ...), which
 :data:`lanelab.experiment.build.MOVED_TARGETS` maps to today's.
 Beside each: what ``lanelab-eval`` scored for it then on the test split (``_scores.json``) and
 the outputs of its ``step`` on the first three frames of the first test clip (``_steps.pt``),
