@@ -26,7 +26,7 @@ from lanelab.experiment.ego_motion import apply_ego_motion_policy
 from lanelab.lightning.csv_logger import HistoryAtCheckpoint
 
 CONFIG_KEY = "lanelab_config"
-# The ``_target_``\s that run configs of earlier versions name, where they moved when the models
+# The ``_target_`` names that run configs of earlier versions hold, where they moved when the models
 # were laid out one package per detector (issue 41): old dotted name -> today's. Every name a
 # shipped config ever gave is here; :func:`read_checkpoint` maps them, so old checkpoints build.
 MOVED_TARGETS = {
