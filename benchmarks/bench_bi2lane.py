@@ -47,7 +47,7 @@ from hydra.utils import instantiate
 import lanelab.models.bi2lane.anchors as anchors_module
 import lanelab.models.bi2lane.model as model_module
 from lanelab.experiment.config import load_train_config
-from lanelab.models.operator_log import OperatorLog
+from lanelab.runtime.operator_log import OperatorLog
 
 CONFIGS = {
     "tiny": (["experiment=tiny", "model=bi2lane"], (64, 96)),

@@ -34,8 +34,8 @@ import torch
 import bench_bi2lane
 import bench_sparselanestp
 
+from lanelab.deploy.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties
 from lanelab.deploy.export import example_inputs, graph_names, input_names, synthetic_clip, write_onnx
-from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties
 from lanelab.models.sparselanestp import SparseLaneSTP
 
 Y = torch.linspace(3.0, 103.0, 100)  # the default data.y_grid

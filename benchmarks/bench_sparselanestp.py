@@ -14,12 +14,12 @@ The variants run interleaved, frame by frame, so that load from other processes 
 alike; figures are medians over the timed frames (after ``--warmup`` frames). The temporal
 overhead is time(T=3) / time(T=0) - 1; the paper reports 9 % (Fig. 7: 11.0 vs 12.1 FPS
 against LATR with six layers). ``--dtype bf16`` runs under torch.autocast. On a GPU a step
-replays from a CUDA graph (``cuda_graphs``, :mod:`lanelab.models.cuda_graph`); ``--cuda-graphs off``
+replays from a CUDA graph (``cuda_graphs``, :mod:`lanelab.runtime.cuda_graph`); ``--cuda-graphs off``
 launches its kernels one by one.
 
 ``--count-operators`` prints, instead of timings, how many operators that compute a tensor one
 streaming step runs (with a full memory), for STA's sparse and dense paths, counted on the CPU
-(``lanelab.models.operator_log``; the count does not depend on the image size, so small images
+(``lanelab.runtime.operator_log``; the count does not depend on the image size, so small images
 are used). At batch 1 on a GPU each is a kernel launch, and the launches are what a frame costs.
 
 The paper configuration is §5.2's: ResNet-50, 720 x 960, L = 6, N = 40, M = 20, T = 3; the
@@ -42,8 +42,8 @@ import torch
 
 from lanelab.geometry import make_transform
 from lanelab.models.categories import NUM_LANE_CATEGORIES
-from lanelab.models.operator_log import OperatorLog
 from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.runtime.operator_log import OperatorLog
 
 _COMMON = dict(
     dropout=0.1, attention="auto", use_sla=True, use_pna=True, use_tca=True, pna_neighbors=2,

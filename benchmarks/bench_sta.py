@@ -36,9 +36,9 @@ from pathlib import Path
 import torch
 from torch.nn.attention import SDPBackend, sdpa_kernel
 
-from lanelab.models.memory_queue import MemoryState
-from lanelab.models.spatio_temporal_attention import SpatioTemporalAttention
-from lanelab.models.sta_masks import density, find_neighbours, neighbour_masks
+from lanelab.models.sparselanestp.memory_queue import MemoryState
+from lanelab.models.sparselanestp.spatio_temporal_attention import SpatioTemporalAttention
+from lanelab.models.sparselanestp.sta_masks import density, find_neighbours, neighbour_masks
 
 N, M, T, N_MEM, M_TCA, C, H = 40, 20, 3, 5, 10, 256, 8
 K = T * N_MEM * M

@@ -5,7 +5,7 @@
 
 The tiny detector (``experiment=demo``, on the demo's training store, ``demo.out``) is trained with
 its image features replaced by an exact map of where the nearest lane lies from every cell (the
-lateral-offset target of ``lanelab.models.losses.lateral_offset``: offset in image widths and
+lateral-offset target of ``lanelab.models.sparselanestp.lateral_offset_loss``: offset in image widths and
 whether a lane is within 2.5 m, broadcast over the channels of every backbone and FPN level). Each
 window's lanes are moved sideways by a random distance in ±1.5 m first (the map with them), so
 that no learned template can place them: what the decoder gets right, it read. Every ``--every``
@@ -30,8 +30,8 @@ from torch import Tensor
 
 from lanelab.experiment.build import build_run
 from lanelab.experiment.config import load_train_config
-from lanelab.models.losses import lateral_offset_targets
 from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.models.sparselanestp.lateral_offset_loss import lateral_offset_targets
 
 SHIFT_M = 1.5
 NEAR_M = (5.0, 30.0)

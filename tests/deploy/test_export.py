@@ -20,6 +20,7 @@ from data_ingest.ingest.mcap_reader import ReadReport
 from data_ingest.ingest.spill import Spill
 import lanelab.deploy.export as export_module
 from lanelab.deploy.config import load_export_config
+from lanelab.deploy.explicit_state import ExplicitStateStep
 from lanelab.deploy.export import (
     METADATA_KEY,
     Exported,
@@ -34,11 +35,10 @@ from lanelab.deploy.export import (
 )
 from lanelab.deploy.export_cli import run
 from lanelab.deploy.trained import load_trained
-from lanelab.models.explicit_state import ExplicitStateStep
 from lanelab.models.sparselanestp import SparseLaneSTP
 from log_predict.config import load_predict_config
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models" / "sparselanestp"))
 from test_sparselanestp import BASELINE  # noqa: E402
 
 TOLERANCE = 1e-4

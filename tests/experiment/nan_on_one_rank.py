@@ -7,7 +7,7 @@ import math
 
 import torch.distributed as dist
 
-from lanelab.models.losses import SparseLaneSTPCriterion
+from lanelab.models.sparselanestp import SparseLaneSTPCriterion
 
 
 class NaNOnRankOne(SparseLaneSTPCriterion):

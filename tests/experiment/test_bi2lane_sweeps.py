@@ -32,7 +32,7 @@ def test_every_job_of_each_table_builds_the_variant_it_names(name):
     nets = []
     for value in swept_values(name):
         cfg = load_train_config([f"sweep={name}", "experiment=tiny", "paths.output_dir=unused", f"{TABLES[name]}={value}"])
-        assert cfg.model.net._target_ == "lanelab.models.Bi2Lane"
+        assert cfg.model.net._target_ == "lanelab.models.bi2lane.Bi2Lane"
         net = cfg.model.net
         nets.append((net.num_history_frames, net.direction, net.aggregation, net.temporal_alignment))
         instantiate(net)

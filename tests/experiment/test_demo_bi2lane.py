@@ -25,7 +25,7 @@ def test_the_bi2lane_preset_trains_and_compares_bi2lane_and_its_baseline(tmp_pat
     monkeypatch.setattr(demo, "evaluate_checkpoint", fake_report)
     demo.demo(["experiment=demo_bi2lane", f"demo.out={tmp_path}"])
 
-    assert set(trained) == {("lanelab.models.Bi2Lane", 3), ("lanelab.models.Bi2Lane", 0)}
+    assert set(trained) == {("lanelab.models.bi2lane.Bi2Lane", 3), ("lanelab.models.bi2lane.Bi2Lane", 0)}
     for cfg in trained.values():  # the demo's recipe and data, Bi²Lane's tiny size
         assert list(cfg.data.image_size) == [96, 128] and cfg.trainer.max_steps == 1500
         assert cfg.model.net.embed_dim == 32 and cfg.data.store == str(tmp_path / "train")

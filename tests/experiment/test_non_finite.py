@@ -17,7 +17,7 @@ from tiny_store import build_store, tiny_overrides
 from lanelab.experiment.config import load_train_config
 from lanelab.experiment.train import train
 from lanelab.finite import NonFiniteError
-from lanelab.models.losses import SparseLaneSTPCriterion
+from lanelab.models.sparselanestp import SparseLaneSTPCriterion
 from lanelab.store import ClipStore, write_clip
 
 LEGACY = Path(__file__).parent / "data" / "legacy_sparselanestp.ckpt"

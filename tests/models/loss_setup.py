@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from lanelab.models.matcher import HungarianMatcher
+from lanelab.models.parts.matcher import HungarianMatcher
 
 MATCHER: dict[str, Any] = {
     "cost_class": 1.0, "cost_reg": 1.0, "cost_vis": 1.0, "gamma": 2.0, "match_on": "predictions",

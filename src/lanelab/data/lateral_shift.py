@@ -13,7 +13,7 @@ longer visible, as the ground truth marks samples outside the camera's view.
 benchmarks/shift_probe.py uses it to ask whether a trained detector reads where a lane lies
 across the road. :class:`LateralShift` is the same as a training augmentation: synthetic egos
 (as real ones) drive centred in their lane, so without it every training lane lies where lanes
-usually lie, and a detector (or its lateral-offset map, models.lateral_offset) can fit the
+usually lie, and a detector (or its lateral-offset map, models.sparselanestp.lateral_offset) can fit the
 training roads by learning that template instead of reading the image. (Alone, with the query
 decoders, it made them read positions less precisely than the blind prior places them:
 benchmarks/RESULTS.md, tenth round; with the lateral-offset map, issue "Decoders that read the

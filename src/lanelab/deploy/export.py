@@ -1,6 +1,6 @@
 """A trained SparseLaneSTP's or Bi²Lane's streaming step as a file that runs without lanelab: its
 memory as explicit inputs and outputs (``state_in_*`` -> ``state_out_*``), a reset flag, and the lanes
-decoded in the graph (:class:`lanelab.models.explicit_state.ExplicitStateStep` has the layout).
+decoded in the graph (:class:`lanelab.deploy.explicit_state.ExplicitStateStep` has the layout).
 
 Formats:
 
@@ -38,15 +38,15 @@ import torch
 from torch import Tensor
 
 from lanelab.atomic_file import atomic_output
+from lanelab.deploy.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
 from lanelab.deploy.trained import TrainedDetector
 from lanelab.geometry import make_transform
 from lanelab.lanes import LANE_CATEGORY_IDS
 from lanelab.models.bi2lane import Bi2Lane
 from lanelab.models.bi2lane.frame_cache import FrameState
-from lanelab.models.explicit_state import INPUT_NAMES, OUTPUT_NAMES, ExplicitStateStep, settle_ties, state_names
-from lanelab.models.memory_queue import QueueState
-from lanelab.models.ranking import forcing_picks
 from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.models.sparselanestp.memory_queue import QueueState
+from lanelab.runtime.ranking import forcing_picks
 
 METADATA_KEY = "lanelab"
 EXPORTABLE = (SparseLaneSTP, Bi2Lane)
@@ -68,7 +68,7 @@ def input_names(net: SparseLaneSTP | Bi2Lane) -> tuple[str, ...]:
 
 def output_names(net: SparseLaneSTP | Bi2Lane, num_picks: int = 0) -> tuple[str, ...]:
     """The graph's outputs in order: the detections, ``state_out_<name>``, then ``pick_<i>`` of
-    the step's num_picks top-k choices (lanelab.models.explicit_state)."""
+    the step's num_picks top-k choices (lanelab.deploy.explicit_state)."""
     state = tuple(f"state_out_{name}" for name in state_names(net))
     return OUTPUT_NAMES + state + tuple(f"pick_{i}" for i in range(num_picks))
 
@@ -267,7 +267,7 @@ def check(net: SparseLaneSTP | Bi2Lane, y: Tensor, run: Callable[..., tuple[Tens
           clip: Sequence[Frame]) -> dict[str, float]:
     """Run the exported step ``run`` over ``clip`` (its state carried from frame to frame) and
     ``net.step_with`` beside it, with a memory object of its own and the graph's picks replayed
-    (:func:`lanelab.models.ranking.forcing_picks`). The largest :func:`difference` of each
+    (:func:`lanelab.runtime.ranking.forcing_picks`). The largest :func:`difference` of each
     output and state tensor over the clip, by name, and under "picks" (models that pick) the
     largest relative gap between a pick of the graph and the eager step's own choice: near 0
     where they chose alike or between near-tied candidates."""

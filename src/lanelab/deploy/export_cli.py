@@ -1,5 +1,5 @@
 """``lanelab-export``: a trained SparseLaneSTP's or Bi²Lane's streaming step as an ONNX or
-torch.export file, its memory as explicit inputs and outputs (layout: :mod:`lanelab.models.explicit_state`).
+torch.export file, its memory as explicit inputs and outputs (layout: :mod:`lanelab.deploy.explicit_state`).
 
     lanelab-export checkpoint=FILE format=onnx|torch out=FILE [batch_size=1] [check.frames=20] [check.tolerance=1e-3]
 

@@ -26,6 +26,19 @@ from lanelab.experiment.ego_motion import apply_ego_motion_policy
 from lanelab.lightning.csv_logger import HistoryAtCheckpoint
 
 CONFIG_KEY = "lanelab_config"
+# The ``_target_`` names that run configs of earlier versions hold, where they moved when the models
+# were laid out one package per detector (issue 41): old dotted name -> today's. Every name a
+# shipped config ever gave is here; :func:`read_checkpoint` maps them, so old checkpoints build.
+MOVED_TARGETS = {
+    "lanelab.models.SparseLaneSTP": "lanelab.models.sparselanestp.SparseLaneSTP",
+    "lanelab.models.SparseLaneSTPLoss": "lanelab.models.sparselanestp.SparseLaneSTPLoss",
+    "lanelab.models.losses.SparseLaneSTPCriterion": "lanelab.models.sparselanestp.SparseLaneSTPCriterion",
+    "lanelab.models.losses.InstanceMaskLoss": "lanelab.models.sparselanestp.InstanceMaskLoss",
+    "lanelab.models.losses.LateralOffsetLoss": "lanelab.models.sparselanestp.LateralOffsetLoss",
+    "lanelab.models.Bi2Lane": "lanelab.models.bi2lane.Bi2Lane",
+    "lanelab.models.losses.Bi2LaneCriterion": "lanelab.models.bi2lane.Bi2LaneCriterion",
+    "lanelab.models.HungarianMatcher": "lanelab.models.parts.HungarianMatcher",
+}
 
 
 @dataclass
@@ -105,7 +118,9 @@ def _up_to_date(config: dict[str, Any]) -> dict[str, Any]:
     ``model.net.offset_hidden_dim`` was split off. Keys added since, with the behaviour of runs
     before them: no lateral-shift augmentation (``data.lateral_shift``), clips without ego motion
     refused (``without_ego_motion``), OpenLane evaluation (``evaluation.format``). The model of
-    older runs, ``lanelab.lightning.SparseLaneSTPModule``, still builds (lanelab.lightning.legacy)."""
+    older runs, ``lanelab.lightning.SparseLaneSTPModule``, still builds (lanelab.lightning.legacy),
+    and the classes that moved are named where they are now (``MOVED_TARGETS``)."""
+    _move_targets(config)
     data, sampler = config.get("data", {}), config.get("sampler", {})
     data.pop("control_points", None)
     if "_target_" in data:
@@ -120,3 +135,17 @@ def _up_to_date(config: dict[str, Any]) -> dict[str, Any]:
     if isinstance(net, dict) and str(net.get("_target_", "")).endswith(".Bi2Lane") and "head_hidden_dim" in net:
         net.setdefault("offset_hidden_dim", net["head_hidden_dim"])
     return config
+
+
+def _move_targets(node: Any) -> None:
+    """Every ``_target_`` of nested dicts and lists that ``MOVED_TARGETS`` names, renamed in place."""
+    if isinstance(node, dict):
+        if node.get("_target_") in MOVED_TARGETS:
+            node["_target_"] = MOVED_TARGETS[node["_target_"]]
+        children = node.values()
+    elif isinstance(node, list):
+        children = node
+    else:
+        return
+    for child in children:
+        _move_targets(child)

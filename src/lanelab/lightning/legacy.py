@@ -15,8 +15,7 @@ from typing import Any
 from lanelab.lightning.module import BackboneStart, LaneDetectionModule
 from lanelab.lightning.optim import adamw, warmup_cosine
 from lanelab.metrics.openlane import OpenLaneConfig
-from lanelab.models.losses import InstanceMaskLoss, SparseLaneSTPCriterion, SparseLaneSTPLoss
-from lanelab.models.sparselanestp import SparseLaneSTP
+from lanelab.models.sparselanestp import InstanceMaskLoss, SparseLaneSTP, SparseLaneSTPCriterion, SparseLaneSTPLoss
 
 PICTURE_HEIGHT = 360  # pixels: what that module drew its pictures at
 

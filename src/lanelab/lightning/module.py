@@ -42,7 +42,7 @@ from lanelab.lightning.predictions import (
 from lanelab.metrics.openlane import OpenLaneConfig
 from lanelab.metrics.openlane_metric import OpenLaneMetric
 from lanelab.models.api import FRAME_KEYS, DetectionOutputs, LaneCriterion, LaneDetector, scored_frames
-from lanelab.models.backbone import load_torchvision_weights
+from lanelab.models.parts.backbone import load_torchvision_weights
 from lanelab.openlane.file_paths import store_file_path
 
 BEST_VAL_F1_KEY = "lanelab_best_val_f1"  # the checkpoint's entry of LaneDetectionModule.best_val_f1
@@ -75,9 +75,9 @@ class LaneDetectionModule(pl.LightningModule):
     conf/scheduler).
     pictures: the validation pictures for the logger (:class:`Pictures`).
     nms_distance: metres; predicted lanes within this mean lateral distance (over the metric's
-    close range) of a more confident one are dropped (models.lane_nms); None: no NMS.
+    close range) of a more confident one are dropped (models.parts.lane_nms); None: no NMS.
     backbone: {"weights": PATH or None}: a torchvision-layout ResNet state dict (e.g. ImageNet
-    weights) loaded into ``net.backbone`` (a lanelab.models.ResNet) when training starts; a
+    weights) loaded into ``net.backbone`` (a lanelab.models.parts.ResNet) when training starts; a
     resumed run's checkpoint, restored after it, overrides it, and evaluation from a checkpoint
     never reads it.
     """

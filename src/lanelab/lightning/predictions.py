@@ -21,7 +21,7 @@ from lanelab.lanes import Lane
 from lanelab.metrics.openlane_metric import LaneBatch
 from lanelab.models.api import LaneDetector
 from lanelab.models.categories import BACKGROUND_INDEX, index_to_category
-from lanelab.models.lane_nms import suppress_duplicates
+from lanelab.models.parts.lane_nms import suppress_duplicates
 
 
 @dataclass
@@ -76,7 +76,7 @@ def predicted_lanes(
     detector's ``forward`` / ``step`` (lanelab.models.api: points decoded by ``net.decode``,
     logits (L, B, N, K + 1)). A line is a lane where a category outscores the background;
     nms = (distance, near range), metres: lanes within that mean lateral distance of a more
-    confident one over y <= near range are dropped (models.lane_nms), None: none."""
+    confident one over y <= near range are dropped (models.parts.lane_nms), None: none."""
     dense = net.decode(outputs, y)  # (B, N, S, 4)
     probability = outputs["logits"][-1].float().softmax(-1)
     score, index = probability[..., :BACKGROUND_INDEX].max(-1)

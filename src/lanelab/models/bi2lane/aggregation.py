@@ -21,7 +21,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from lanelab.models.single_query_attention import single_query_attention
+from lanelab.models.bi2lane.single_query_attention import single_query_attention
 
 LEVELS = ("none", "point", "line", "bilevel")
 

@@ -7,7 +7,7 @@ no past: its window repeats the new frame, marked invalid, as the window dataset
 start (:mod:`lanelab.data.dataset`), so streaming computes what the windowed model computes.
 Cached features are detached (StreamPETR's rule): no gradient reaches an earlier step.
 The contents are a :class:`FrameState` (``state`` / ``load``): an exported graph carries them
-as tensors (lanelab.models.explicit_state).
+as tensors (lanelab.deploy.explicit_state).
 """
 
 from __future__ import annotations

@@ -36,15 +36,15 @@ from torch import Tensor, nn
 
 from lanelab.geometry import control_point_y
 from lanelab.geometry.curves import LaneCurves
-from lanelab.models.backbone import ResNet
 from lanelab.models.bi2lane.aggregation import BiLevelAggregation
 from lanelab.models.bi2lane.anchors import anchor_families
 from lanelab.models.bi2lane.bev import BEVSegmentation
 from lanelab.models.bi2lane.frame_cache import FrameCache, FrameState
 from lanelab.models.bi2lane.refinement import TemporalRefinement, refine
-from lanelab.models.cuda_graph import CUDAGraphed
-from lanelab.models.fpn import FPN
-from lanelab.models.heads import mlp
+from lanelab.models.parts.backbone import ResNet
+from lanelab.models.parts.fpn import FPN
+from lanelab.models.parts.heads import mlp
+from lanelab.runtime.cuda_graph import CUDAGraphed
 
 DIRECTIONS = ("forward", "reverse", "bidirectional")
 # The FPN reads C3..C5 and gives one level, stride 8.
@@ -90,7 +90,7 @@ class Bi2Lane(nn.Module):
     BDTR's offset heads (eq. 2, with head_hidden_layers), which run once per history frame.
     num_classes K (without background); bev: the auxiliary BEV branch, None: none.
     cuda_graphs: streaming inference on a GPU replays each frame's kernels from CUDA graphs
-    (:mod:`lanelab.models.cuda_graph`; the same results, without the launch cost of BDTR's steps).
+    (:mod:`lanelab.runtime.cuda_graph`; the same results, without the launch cost of BDTR's steps).
     """
 
     def __init__(
@@ -186,7 +186,7 @@ class Bi2Lane(nn.Module):
 
     def step_with(self, cache: FrameCache, frame: Mapping[str, Tensor]) -> dict[str, Any]:
         """``step`` against the given frame cache instead of the model's own (an exported graph
-        carries its cache as tensors: lanelab.models.explicit_state)."""
+        carries its cache as tensors: lanelab.deploy.explicit_state)."""
         if "reset" in frame:
             cache.reset(frame["reset"])
         images = frame["images"]

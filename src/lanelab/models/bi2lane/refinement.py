@@ -36,7 +36,7 @@ import torch
 from torch import Tensor, nn
 
 from lanelab.models.bi2lane.anchors import ego_motion, grid_projection, move_points, project_to_grid, sample_features
-from lanelab.models.heads import mlp
+from lanelab.models.parts.heads import mlp
 
 
 class Refined(NamedTuple):
