@@ -2,11 +2,12 @@ import numpy as np
 import pytest
 import torch
 
-from lanelab.models.sparselanestp.criterion import detection_inputs
+from lanelab.models.sparselanestp.criterion import SparseLaneSTPCriterion, detection_inputs
 from lanelab.models.sparselanestp.deep_supervision import SparseLaneSTPLoss
+from lanelab.models.sparselanestp.instance_mask_loss import InstanceMaskLoss
 from lanelab.models.sparselanestp.query_denoising import QueryDenoising, lanes_at
 from loss_setup import build_matcher
-from test_sparselanestp import BASELINE, TINY, B, L, M, model, window
+from test_sparselanestp import BASELINE, TINY, B, F, L, M, model, window
 
 DENOISING = {"groups": 2, "max_shift": 1.5, "max_angle": 2.0}
 G, S = 3, 21
@@ -122,3 +123,11 @@ def test_the_denoising_term_trains_the_noised_lanes_onto_their_lanes(config):
         loss._denoising_loss(o, loss.curves.bases(batch["gt_y"]), targets) for o in (out, padded)
     ]
     torch.testing.assert_close(values[0], values[1])
+
+
+def test_the_criterion_logs_the_denoising_term_only_where_lanes_were_noised():
+    full = SparseLaneSTPCriterion(criterion("discrete"), InstanceMaskLoss(dice_weight=2.0, bce_weight=5.0))
+    batch = {**with_lanes(window()), "labeled": torch.ones(B, F, dtype=torch.bool), "padding": torch.zeros(B, dtype=torch.bool)}
+    for denoising, expected in ((None, False), (DENOISING, True)):
+        net = model(**BASELINE, denoising=denoising).train()
+        assert ("denoise" in full(net(batch), batch)) is expected

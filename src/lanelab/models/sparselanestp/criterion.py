@@ -60,7 +60,8 @@ class SparseLaneSTPCriterion(nn.Module):
     def forward(self, outputs: Mapping[str, Any], batch: Mapping[str, Any]) -> dict[str, Tensor]:
         """outputs: SparseLaneSTP's (points (L, B, N, M, 4), logits (L, B, N, K + 1), masks
         (B, N, h, w), anchors, memory); batch: the collated batch (lanelab.models.api).
-        Returns "total", the detection terms of non-zero weight (summed over layers) and the
+        Returns "total", the detection terms of non-zero weight (summed over layers; "denoise"
+        only with noised lanes in the outputs) and the
         instance masks' "mask_dice" and "mask_bce", the lateral-offset map's "offset" and
         "offset_confidence" (with one); only "total" where no frame counts."""
         scored = scored_frames(batch)
@@ -76,7 +77,10 @@ class SparseLaneSTPCriterion(nn.Module):
         masks = self.instance_mask(
             outputs["masks"][scored], targets, *camera, tuple(batch["images"].shape[-2:]), losses["matches"]
         )
-        terms = {term: losses[term] for term, weight in self.detection.weights.items() if weight}
+        # "denoise" only where the model decoded noised lanes (query denoising, in training)
+        denoised = outputs.get("denoising") is not None
+        weights = self.detection.weights
+        terms = {term: losses[term] for term, weight in weights.items() if weight and (denoised or term != "denoise")}
         terms.update(mask_dice=masks["dice"], mask_bce=masks["bce"])
         total = losses["total"] + masks["total"]
         if self.lateral_offset is not None:

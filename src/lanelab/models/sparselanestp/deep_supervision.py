@@ -86,12 +86,16 @@ class SparseLaneSTPLoss(nn.Module):
         losses["total"] = sum(self.weights[term] * losses[term] for term in TERMS)
         return {**losses, "matches": matches}
 
-    def _denoising_loss(self, denoising: Mapping[str, Tensor], bases: tuple[Tensor, Tensor], targets: Mapping[str, Tensor]) -> Tensor:
+    def _denoising_loss(
+        self, denoising: Mapping[str, Tensor], bases: tuple[Tensor, Tensor], targets: Mapping[str, Tensor]
+    ) -> Tensor:
         """The noised lanes' detection losses against the lanes they were made from, summed over
         layers, each term weighted as the matched lines' are."""
         copies = denoising["points"].shape[2] // targets["gt_mask"].shape[1]
         mask = targets["gt_mask"].repeat(1, copies)
-        gt_x, gt_z, gt_vis = (targets[key].repeat(1, copies, 1)[mask].to(denoising["points"]) for key in ("gt_x", "gt_z", "gt_vis"))
+        gt_x, gt_z, gt_vis = (
+            targets[key].repeat(1, copies, 1)[mask].to(denoising["points"]) for key in ("gt_x", "gt_z", "gt_vis")
+        )
         target = category_to_index(targets["gt_category"].repeat(1, copies)[mask])
         total = denoising["points"].new_zeros(())
         for points, logits in zip(denoising["points"], denoising["logits"]):

@@ -447,7 +447,10 @@ class SparseLaneSTP(nn.Module):
             repeat(K), repeat(T_lane_cam), image_size, line_mask,
         )  # fmt: skip
         L, B = all_points.shape[0], BR // R
-        return {"points": all_points.reshape(L, B, R * G, *all_points.shape[-2:]), "logits": all_logits.reshape(L, B, R * G, -1)}
+        return {
+            "points": all_points.reshape(L, B, R * G, *all_points.shape[-2:]),
+            "logits": all_logits.reshape(L, B, R * G, -1),
+        }
 
 
 def _frame_axis(key: str) -> int:

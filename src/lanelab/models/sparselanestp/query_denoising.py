@@ -42,7 +42,9 @@ class QueryDenoising(nn.Module):
     def __init__(self, embed_dim: int, num_points: int, groups: int, max_shift: float, max_angle: float) -> None:
         super().__init__()
         if groups < 1 or max_shift < 0 or max_angle < 0:
-            raise ValueError(f"denoising needs groups >= 1 and non-negative noise, got {groups}, {max_shift}, {max_angle}")
+            raise ValueError(
+                f"denoising needs groups >= 1 and non-negative noise, got {groups}, {max_shift}, {max_angle}"
+            )
         self.content = nn.Parameter(torch.zeros(embed_dim))
         self.groups, self.max_shift, self.max_slope = groups, max_shift, math.tan(math.radians(max_angle))
 
