@@ -5,7 +5,7 @@ import torch
 from lanelab.models.sparselanestp.criterion import SparseLaneSTPCriterion, detection_inputs
 from lanelab.models.sparselanestp.deep_supervision import SparseLaneSTPLoss
 from lanelab.models.sparselanestp.instance_mask_loss import InstanceMaskLoss
-from lanelab.models.sparselanestp.query_denoising import QueryDenoising, lanes_at
+from lanelab.models.sparselanestp.query_denoising import QueryDenoising
 from loss_setup import build_matcher
 from test_sparselanestp import BASELINE, TINY, B, F, L, M, model, window
 
@@ -37,12 +37,14 @@ def criterion(representation: str, denoise: float = 1.0) -> SparseLaneSTPLoss:
     )  # fmt: skip
 
 
-def test_lanes_at_interpolates_and_holds_the_ends_like_np_interp():
+def test_unnoised_lanes_are_interpolated_and_held_at_the_ends_like_np_interp():
     gt_y = torch.tensor([[0.0, 10.0, 30.0, 60.0]])
-    values = torch.tensor([[[1.0, 2.0, 0.0, -3.0]]])[..., None]  # (1, 1, 4, 1)
+    x = torch.tensor([[[1.0, 2.0, 0.0, -3.0]]])  # (1, 1, 4)
+    targets = {"gt_y": gt_y, "gt_x": x, "gt_z": 0 * x, "gt_vis": 1 + 0 * x, "gt_mask": torch.ones(1, 1, dtype=torch.bool)}
     y = torch.tensor([-5.0, 0.0, 5.0, 20.0, 59.0, 75.0])
-    expected = np.interp(y.numpy(), gt_y[0].numpy(), values[0, 0, :, 0].numpy())
-    np.testing.assert_allclose(lanes_at(gt_y, values, y)[0, 0, :, 0].numpy(), expected, rtol=1e-6)
+    points, _ = QueryDenoising(8, len(y), groups=1, max_shift=0.0, max_angle=0.0).noised_points(targets, y)
+    expected = np.interp(y.numpy(), gt_y[0].numpy(), x[0, 0].numpy())
+    np.testing.assert_allclose(points[0, 0, :, 0].numpy(), expected, rtol=1e-6)
 
 
 def test_noised_lanes_are_the_lanes_moved_sideways_within_the_noise_per_copy():
@@ -50,7 +52,8 @@ def test_noised_lanes_are_the_lanes_moved_sideways_within_the_noise_per_copy():
     y = torch.linspace(3.0, 103.0, M)
     exact, mask = QueryDenoising(8, M, groups=3, max_shift=0.0, max_angle=0.0).noised_points(batch, y)
     assert exact.shape == (B * 3, G, M, 4) and mask.shape == (B * 3, G)
-    torch.testing.assert_close(exact[0, :, :, 0], lanes_at(batch["gt_y"], batch["gt_x"][..., None], y)[0, ..., 0])
+    expected = [np.interp(y.numpy(), batch["gt_y"][0].numpy(), lane.numpy()) for lane in batch["gt_x"][0]]
+    np.testing.assert_allclose(exact[0, :, :, 0].numpy(), np.stack(expected), rtol=1e-6)
     torch.testing.assert_close(mask, batch["gt_mask"].repeat_interleave(3, 0))
 
     torch.manual_seed(0)

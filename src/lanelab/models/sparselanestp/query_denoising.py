@@ -21,17 +21,7 @@ import math
 import torch
 from torch import Tensor, nn
 
-
-def lanes_at(gt_y: Tensor, values: Tensor, y: Tensor) -> Tensor:
-    """values (B, G, S, D) of lanes sampled at gt_y (B, S) ascending -> (B, G, M, D) at y (M,),
-    linearly interpolated, held at the end values outside gt_y (as the targets hold them)."""
-    y = y.to(gt_y).expand(gt_y.shape[0], -1).contiguous()
-    right = torch.searchsorted(gt_y.contiguous(), y).clamp(1, gt_y.shape[1] - 1)  # (B, M)
-    y0, y1 = gt_y.gather(1, right - 1), gt_y.gather(1, right)
-    t = ((y - y0) / (y1 - y0).clamp(min=1e-6)).clamp(0, 1)  # (B, M)
-    index = right[:, None, :, None].expand(-1, values.shape[1], -1, values.shape[-1])
-    v0, v1 = values.gather(2, index - 1), values.gather(2, index)
-    return torch.lerp(v0, v1, t[:, None, :, None].to(values))
+from lanelab.geometry import interpolate_in_y
 
 
 class QueryDenoising(nn.Module):
@@ -52,10 +42,12 @@ class QueryDenoising(nn.Module):
         """targets: gt_y (B, S), gt_x / gt_z / gt_vis (B, G, S), gt_mask (B, G); y (M,) the
         control points' y. Returns noised control points (B R, G, M, 4) = (x, y, z, v), metres,
         group r of sample b at row b R + r, and the lanes' mask (B R, G)."""
-        gt_y = targets["gt_y"]
-        lanes = torch.stack([targets[key] for key in ("gt_x", "gt_z", "gt_vis")], -1).float()
-        points = lanes_at(gt_y.float(), lanes, y.float()).repeat_interleave(self.groups, 0)  # (B R, G, M, 3)
-        BR, G = points.shape[:2]
+        B, G = targets["gt_mask"].shape
+        grid, at = targets["gt_y"].float()[:, None].expand(B, G, -1), y.float().expand(B, G, -1)
+        # the lanes at the control points' y, held at their end values beyond them (as the targets are)
+        lanes = [interpolate_in_y(at, grid, targets[key].float())[0] for key in ("gt_x", "gt_z", "gt_vis")]
+        points = torch.stack(lanes, -1).repeat_interleave(self.groups, 0)  # (B R, G, M, 3)
+        BR = points.shape[0]
         unit = torch.rand(2, BR, G, 1, device=points.device) * 2 - 1
         shift = unit[0] * self.max_shift + unit[1] * self.max_slope * (y - y[0]).to(points)
         x = points[..., 0] + shift
