@@ -13,7 +13,6 @@ map (models.sparselanestp.lateral_offset), its dense loss (:class:`~lanelab.mode
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import fields
 from typing import Any
 
 from torch import Tensor, nn
@@ -22,7 +21,6 @@ from lanelab.models.api import TARGET_KEYS, scored_frames
 from lanelab.models.sparselanestp.deep_supervision import SparseLaneSTPLoss
 from lanelab.models.sparselanestp.instance_mask_loss import InstanceMaskLoss
 from lanelab.models.sparselanestp.lateral_offset_loss import LateralOffsetLoss
-from lanelab.models.sparselanestp.memory_queue import MemoryState
 
 
 def detection_inputs(outputs: Mapping[str, Any], frames: Tensor) -> dict[str, Any]:
@@ -34,7 +32,7 @@ def detection_inputs(outputs: Mapping[str, Any], frames: Tensor) -> dict[str, An
     points, logits = outputs["points"][:, frames], outputs["logits"][:, frames]
     memory = outputs["memory"]
     if memory is not None:
-        memory = MemoryState(**{field.name: getattr(memory, field.name)[frames] for field in fields(MemoryState)})
+        memory = memory.map(lambda tensor: tensor[frames])
     denoising = outputs.get("denoising")
     if denoising is not None:
         denoising = {key: value[:, frames] for key, value in denoising.items()}

@@ -19,7 +19,8 @@ The queue's contents are four tensors (:class:`QueueState`): ``state`` hands the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, fields
 
 import torch
 from torch import Tensor
@@ -41,6 +42,10 @@ class MemoryState:
     points: Tensor
     valid: Tensor
     age: Tensor
+
+    def map(self, fn: Callable[[Tensor], Tensor]) -> MemoryState:
+        """The state with fn applied to every tensor (e.g. selecting or repeating batch elements)."""
+        return MemoryState(**{field.name: fn(getattr(self, field.name)) for field in fields(self)})
 
 
 @dataclass

@@ -44,7 +44,6 @@ on at the tiny size the demo trains (conf/model_size/tiny).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import fields
 from typing import Any, NamedTuple
 
 import torch
@@ -441,7 +440,7 @@ class SparseLaneSTP(nn.Module):
             return tensor.repeat_interleave(R, 0)
 
         if memory is not None:
-            memory = MemoryState(**{field.name: repeat(getattr(memory, field.name)) for field in fields(MemoryState)})
+            memory = memory.map(repeat)
         all_points, all_logits, _ = self.decoder(
             queries, self.head.point_logits(points), memory, [repeat(level) for level in encoded.features],
             repeat(K), repeat(T_lane_cam), image_size, line_mask,
