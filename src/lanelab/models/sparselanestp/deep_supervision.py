@@ -100,12 +100,20 @@ class SparseLaneSTPLoss(nn.Module):
         total = denoising["points"].new_zeros(())
         for points, logits in zip(denoising["points"], denoising["logits"]):
             curves = sample_lanes(points, bases)[mask]  # (P, S, 4)
-            total = total + (
-                self.weights["cls"] * focal_loss(logits[mask], target, self.gamma)
-                + self.weights["reg"] * regression_loss(curves, gt_x, gt_z, gt_vis, gt_vis.sum().clamp(min=1))
-                + self.weights["vis"] * visibility_loss(curves, gt_vis, max(gt_vis.numel(), 1))
-            )
+            terms = self._detection_terms(logits[mask], target, curves, gt_x, gt_z, gt_vis)
+            total = total + sum(self.weights[term] * value for term, value in terms.items())
         return total
+
+    def _detection_terms(
+        self, logits: Tensor, target: Tensor, curves: Tensor, gt_x: Tensor, gt_z: Tensor, gt_vis: Tensor
+    ) -> dict[str, Tensor]:
+        """Eq. 22-24: "cls" of logits (..., K + 1) against their class indices (...); "reg" and
+        "vis" of the curves (P, S, 4) paired with the lanes' samples gt_x, gt_z, gt_vis (P, S)."""
+        return {
+            "cls": focal_loss(logits, target, self.gamma),
+            "reg": regression_loss(curves, gt_x, gt_z, gt_vis, gt_vis.sum().clamp(min=1)),
+            "vis": visibility_loss(curves, gt_vis, max(gt_vis.numel(), 1)),
+        }
 
     def _layer_losses(
         self, points: Tensor, logits: Tensor, bases: tuple[Tensor, Tensor], targets: Mapping[str, Tensor],
@@ -123,11 +131,7 @@ class SparseLaneSTPLoss(nn.Module):
         target[batch, pred] = category_to_index(targets["gt_category"][batch, gt])
         matched = curves[batch, pred]  # (P, S, 4)
         gt_x, gt_z, gt_vis = (targets[key][batch, gt].to(curves) for key in ("gt_x", "gt_z", "gt_vis"))
-        losses = {
-            "cls": focal_loss(logits, target, self.gamma),
-            "reg": regression_loss(matched, gt_x, gt_z, gt_vis, gt_vis.sum().clamp(min=1)),
-            "vis": visibility_loss(matched, gt_vis, max(gt_vis.numel(), 1)),
-        }
+        losses = self._detection_terms(logits, target, matched, gt_x, gt_z, gt_vis)
         lines = torch.zeros(B, N, dtype=torch.bool, device=logits.device)
         lines[batch, pred] = True
         if self.weights["parallel"] or self.weights["surface"]:
